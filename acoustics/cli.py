@@ -1,0 +1,130 @@
+"""The ``abacus`` command line. The only layer (with the tests) that joins acoustics and
+processing as peers; user errors end in one message and exit status 2, never a traceback."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import warnings
+from pathlib import Path
+
+from processing.config import ConfigError
+
+__all__ = ["main"]
+
+DEFAULT_SCENE = Path(__file__).resolve().parent.parent / "scenes" / "default.yaml"
+
+
+class UsageError(Exception):
+    """A bad option or argument: printed as one line, exit status 2."""
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"warning: {message}", file=sys.stderr)
+
+
+def _load(path):
+    from .scene import load_scene
+    return load_scene(path)
+
+
+# ------------------------------------------------------------------- commands
+def cmd_scene(args) -> int:
+    from .scene import json_schema_text
+    if args.action == "schema":
+        sys.stdout.write(json_schema_text())
+        return 0
+    if args.file is None:
+        raise UsageError(f"abacus scene {args.action}: give a scene FILE")
+    scene = _load(args.file)
+    if args.action == "check":
+        print(f"{args.file}: ok — scene '{scene.name}', {scene.pings.count} ping(s), "
+              f"sha256 {scene.sha256()[:12]}")
+    else:
+        sys.stdout.write(scene.resolved_text())
+    return 0
+
+
+def _beams(scene, outdir: Path | None, as_json: bool) -> dict:
+    from .beam_table import beam_arrays, beam_cuts, beam_table, format_beam_table
+    from .medium import Medium
+    medium = Medium.from_spec(scene.medium)
+    f0 = scene.signal.center_frequency_hz
+    geometry = (scene.sonar.preset_geometry.model_dump()
+                if scene.sonar.preset == "abacus" and scene.sonar.variant == "abacus" else None)
+    table = beam_table(medium=medium, frequency_hz=f0, geometry=geometry)
+    if as_json:
+        print(json.dumps(table, indent=2))
+    else:
+        print(f"Beam patterns at f0 = {f0 / 1e3:g} kHz, c = {medium.sound_speed_m_s:g} m/s "
+              f"(λ = {medium.sound_speed_m_s / f0 * 1e3:.4g} mm)")
+        print(format_beam_table(table))
+    if outdir is not None:
+        from .plot_beams import plot_beam_figures
+        cuts = beam_cuts(beam_arrays(geometry), medium=medium, frequency_hz=f0)
+        paths = plot_beam_figures(cuts, outdir)
+        if not as_json:
+            for p in paths:
+                print(f"wrote {p}")
+    return table
+
+
+def cmd_beams(args) -> int:
+    scene = _load(args.scene or DEFAULT_SCENE)
+    _beams(scene, Path(args.plots) if args.plots else None, args.json)
+    return 0
+
+
+def cmd_run(args) -> int:
+    scene = _load(args.scene)
+    outdir = Path(args.output or Path("runs") / scene.name)
+    outdir.mkdir(parents=True, exist_ok=True)
+    print(f"scene '{scene.name}' ({args.scene}): valid, sha256 {scene.sha256()[:12]}")
+    (outdir / "scene.resolved.yaml").write_text(scene.resolved_text())
+    _beams(scene, outdir, False)
+    print(f"outputs in {outdir}/")
+    return 0
+
+
+# --------------------------------------------------------------------- parser
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="abacus", description=__doc__.split(".")[0] + ".")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    r = sub.add_parser("run", help="the main job on a scene (validate, beams; more to come)")
+    r.add_argument("scene", help="scene file (YAML)")
+    r.add_argument("-o", "--output", help="output folder (default runs/<scene name>)")
+    r.set_defaults(func=cmd_run)
+
+    s = sub.add_parser("scene", help="check a scene file, show it resolved, or print the schema")
+    s.add_argument("action", choices=["check", "show", "schema"])
+    s.add_argument("file", nargs="?", help="scene file (YAML)")
+    s.set_defaults(func=cmd_scene)
+
+    b = sub.add_parser("beams", help="beamwidth and sidelobe table, beam-pattern plots")
+    b.add_argument("scene", nargs="?", help="scene file (default scenes/default.yaml)")
+    b.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+    b.add_argument("--plots", metavar="DIR", help="write PNG plots into DIR")
+    b.set_defaults(func=cmd_beams)
+    return p
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    warnings.showwarning = _show_warning
+    try:
+        return int(args.func(args) or 0)
+    except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except UsageError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,386 @@
+"""Validated configuration files: YAML reading, unit conventions and readable errors.
+
+Scene files (``acoustics``) and processing-settings files (``processing``) share this
+machinery, which lives here because ``processing`` must never import ``acoustics``.
+
+Rules every configuration model follows:
+
+* pydantic v2 models with ``extra="forbid"``, frozen, sequences as tuples;
+* numbers are strict (``"0.02"`` or ``true`` is not a length) and finite;
+* SI units inside; the only non-SI keys in a file are angles, and those end in ``_deg``.
+  A ``_deg`` key is converted to radians on load and back to degrees on dump, so a
+  resolved file (``abacus scene show``) reads like the file a user wrote;
+* every error names the file, the line, the key path (``sonar.pose.position_m[2]``),
+  the value found and what is accepted.
+"""
+from __future__ import annotations
+
+import math
+import types
+import typing
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import yaml
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, PlainSerializer,
+                      ValidationError)
+
+__all__ = ["ConfigError", "ConfigWarning", "ConfigModel", "Real", "PositiveReal",
+           "NonNegativeReal", "Count", "PositiveCount", "Vec3", "AngleDeg", "read_yaml",
+           "validate_file", "format_key_path", "dump_yaml"]
+
+
+class ConfigError(ValueError):
+    """A configuration file (scene, settings) that cannot be used.
+
+    The message is complete and meant for the user as it is: file, line, key path, the
+    value found and what is accepted, one problem per line. ``problems`` holds the same
+    information as a list of dicts for programs.
+    """
+
+    def __init__(self, message: str, problems: list[dict] | None = None):
+        super().__init__(message)
+        self.problems = problems or []
+
+
+class ConfigWarning(UserWarning):
+    """Legal but surprising physics in a configuration file (printed, never fatal)."""
+
+
+# ---------------------------------------------------------------------------- types
+def _finite(v):
+    if isinstance(v, float) and not math.isfinite(v):
+        raise ValueError("must be a finite number (not inf or nan)")
+    return v
+
+
+Real = Annotated[float, Field(strict=True), BeforeValidator(_finite)]
+PositiveReal = Annotated[float, Field(strict=True, gt=0), BeforeValidator(_finite)]
+NonNegativeReal = Annotated[float, Field(strict=True, ge=0), BeforeValidator(_finite)]
+Count = Annotated[int, Field(strict=True, ge=0)]
+PositiveCount = Annotated[int, Field(strict=True, gt=0)]
+Vec3 = tuple[Real, Real, Real]
+
+
+def _fmt_num(x: float) -> str:
+    return f"{x:g}"
+
+
+def AngleDeg(lo: float | None = None, hi: float | None = None, *, lo_open: bool = False,
+             hi_open: bool = False):
+    """A scalar angle written in degrees in files (key ``*_deg``) and held in radians.
+
+    Bounds are checked in degrees so the message speaks the file's language.
+    """
+
+    def to_rad(v):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise ValueError("must be a number of degrees")
+        v = float(v)
+        if not math.isfinite(v):
+            raise ValueError("must be a finite number of degrees")
+        bad = ((lo is not None and (v < lo or (lo_open and v == lo)))
+               or (hi is not None and (v > hi or (hi_open and v == hi))))
+        if bad:
+            left = "(" if lo_open else "["
+            right = ")" if hi_open else "]"
+            lo_s = _fmt_num(lo) if lo is not None else "-inf"
+            hi_s = _fmt_num(hi) if hi is not None else "inf"
+            raise ValueError(f"must be in {left}{lo_s}, {hi_s}{right} degrees")
+        return math.radians(v)
+
+    def to_deg(v: float) -> float:
+        return float(f"{math.degrees(v):.12g}")
+
+    schema: dict[str, Any] = {"type": "number", "description_unit": "degrees"}
+    if lo is not None:
+        schema["exclusiveMinimum" if lo_open else "minimum"] = lo
+    if hi is not None:
+        schema["exclusiveMaximum" if hi_open else "maximum"] = hi
+    return Annotated[float, BeforeValidator(to_rad), PlainSerializer(to_deg, return_type=float),
+                     Field(json_schema_extra=schema)]
+
+
+class ConfigModel(BaseModel):
+    """Base of every configuration section: frozen, closed, validated defaults."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True,
+                              populate_by_name=False, allow_inf_nan=False,
+                              use_attribute_docstrings=True)
+
+
+# ------------------------------------------------------------------------- reading
+def format_key_path(loc: tuple) -> str:
+    """``('a', 'b', 3, 'c')`` -> ``'a.b[3].c'``."""
+    out = ""
+    for item in loc:
+        if isinstance(item, int):
+            out += f"[{item}]"
+        else:
+            out += ("." if out else "") + str(item)
+    return out or "(top level)"
+
+
+def _walk_nodes(node, path: tuple, marks: dict, file: str):
+    """Record the line of every key path; reject duplicate and non-string keys."""
+    marks[path] = node.start_mark.line + 1
+    if isinstance(node, yaml.MappingNode):
+        seen: dict[str, int] = {}
+        for key_node, value_node in node.value:
+            if not isinstance(key_node, yaml.ScalarNode) or key_node.tag != "tag:yaml.org,2002:str":
+                line = key_node.start_mark.line + 1
+                raise ConfigError(
+                    f"{file}:{line}: {format_key_path(path)}: key {key_node.value!r} is not a "
+                    f"plain string; keys are names such as 'width_m' (quote keys like 'on' or "
+                    f"'yes' that YAML would read as booleans)")
+            key = key_node.value
+            line = key_node.start_mark.line + 1
+            if key in seen:
+                raise ConfigError(
+                    f"{file}:{line}: {format_key_path(path + (key,))}: duplicate key (first "
+                    f"given on line {seen[key]}); each key may appear once")
+            seen[key] = line
+            marks[path + (key,)] = line
+            _walk_nodes(value_node, path + (key,), marks, file)
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            _walk_nodes(item, path + (i,), marks, file)
+
+
+def read_yaml(path: str | Path) -> tuple[Any, dict[tuple, int]]:
+    """Read a YAML file into plain Python data and a map key path -> line number.
+
+    Raises
+    ------
+    ConfigError
+        unreadable file, YAML syntax error, duplicate keys, non-string keys.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{path}: is a directory, expected a YAML file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot be read ({exc.__class__.__name__}: {exc})") from None
+    try:
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
+        problem = getattr(exc, "problem", None) or str(exc)
+        context = getattr(exc, "context", None)
+        detail = f"{problem} ({context})" if context else problem
+        raise ConfigError(f"{where}: YAML syntax error: {detail}") from None
+    marks: dict[tuple, int] = {}
+    if node is None:
+        return None, marks
+    _walk_nodes(node, (), marks, str(path))
+    try:
+        data = yaml.load(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as exc:  # pragma: no cover - compose already parsed it
+        raise ConfigError(f"{path}: YAML error: {exc}") from None
+    return data, marks
+
+
+def dump_yaml(data: Any) -> str:
+    """Plain, stable YAML for resolved configurations: keys in model order (tags such as
+    ``kind`` and ``model`` first), mappings in block style, short lists of numbers inline."""
+
+    class _Dumper(yaml.SafeDumper):
+        pass
+
+    def _seq(dumper, value):
+        flow = all(not isinstance(v, (dict, list, tuple)) for v in value)
+        return dumper.represent_sequence("tag:yaml.org,2002:seq", list(value), flow_style=flow)
+
+    def _map(dumper, value):
+        first = [k for k in ("kind", "model") if k in value]
+        items = [(k, value[k]) for k in first] + [(k, v) for k, v in value.items() if k not in first]
+        return dumper.represent_mapping("tag:yaml.org,2002:map", items, flow_style=False)
+
+    _Dumper.add_representer(tuple, _seq)
+    _Dumper.add_representer(list, _seq)
+    _Dumper.add_representer(dict, _map)
+    return yaml.dump(data, Dumper=_Dumper, sort_keys=False, width=100, allow_unicode=True)
+
+
+# ------------------------------------------------------------- error formatting
+def _unwrap(ann):
+    while typing.get_origin(ann) is Annotated:
+        ann = typing.get_args(ann)[0]
+    return ann
+
+
+def _is_model(ann) -> bool:
+    return isinstance(ann, type) and issubclass(ann, BaseModel)
+
+
+def _union_members(ann) -> list | None:
+    origin = typing.get_origin(ann)
+    if origin is Union or origin is types.UnionType:
+        return [_unwrap(a) for a in typing.get_args(ann)]
+    return None
+
+
+def _tag_of(model: type[BaseModel]) -> list[str]:
+    tags = []
+    for name, field in model.model_fields.items():
+        ann = _unwrap(field.annotation)
+        if typing.get_origin(ann) is Literal:
+            tags.extend(str(a) for a in typing.get_args(ann))
+    return tags
+
+
+def _describe_path(root: type[BaseModel], loc: tuple) -> tuple[tuple, type[BaseModel] | None]:
+    """Turn a pydantic ``loc`` into the file's key path, dropping union tags.
+
+    Also returns the model class the last key belongs to (for listing accepted keys).
+    """
+    ann: Any = root
+    shown: list = []
+    parent_model: type[BaseModel] | None = root
+    for item in loc:
+        ann = _unwrap(ann)
+        members = _union_members(ann)
+        if members is not None:
+            non_none = [m for m in members if m is not type(None)]
+            picked = None
+            for m in non_none:
+                if _is_model(m) and (item in _tag_of(m) or item == m.__name__):
+                    picked = m
+                    break
+                if isinstance(item, str) and not _is_model(m) and item == getattr(m, "__name__", None):
+                    picked = m
+                    break
+            if picked is not None:
+                ann = picked
+                continue
+            if len(non_none) == 1:
+                ann = non_none[0]
+            elif isinstance(item, str) and ("[" in item or item in {"float", "int", "str", "bool", "none"}):
+                continue
+            else:
+                models = [m for m in non_none if _is_model(m)]
+                ann = models[0] if models else non_none[0]
+            ann = _unwrap(ann)
+        if _is_model(ann):
+            parent_model = ann
+            target = None
+            for name, field in ann.model_fields.items():
+                if item == (field.alias or name):
+                    target = field.annotation
+                    break
+            shown.append(item)
+            ann = target
+            continue
+        origin = typing.get_origin(ann)
+        args = typing.get_args(ann)
+        if origin in (list, tuple, set, frozenset) and isinstance(item, int):
+            shown.append(item)
+            if origin is tuple and args and args[-1] is not Ellipsis:
+                ann = args[item] if item < len(args) else None
+            else:
+                ann = args[0] if args else None
+            continue
+        if origin is dict:
+            shown.append(item)
+            ann = args[1] if len(args) == 2 else None
+            continue
+        shown.append(item)
+        ann = None
+    return tuple(shown), parent_model
+
+
+def _accepted_keys(model: type[BaseModel]) -> list[str]:
+    return [f.alias or n for n, f in model.model_fields.items()]
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 70 else text[:67] + "..."
+
+
+def _explain(err: dict, parent: type[BaseModel] | None) -> str:
+    kind = err["type"]
+    msg = err["msg"]
+    ctx = err.get("ctx") or {}
+    if msg.startswith("Value error, "):
+        msg = msg[len("Value error, "):]
+    if msg.startswith("Assertion failed, "):
+        msg = msg[len("Assertion failed, "):]
+    if kind == "extra_forbidden":
+        keys = ", ".join(_accepted_keys(parent)) if parent else "?"
+        return f"unknown key; accepted keys here: {keys}"
+    if kind == "missing":
+        return "required key is missing"
+    if kind == "literal_error":
+        return f"not an accepted value; accepted: {ctx.get('expected', '')}"
+    if kind in ("union_tag_invalid", "union_tag_not_found"):
+        return f"{msg}"
+    if kind.startswith("float") or kind.startswith("int"):
+        return {"float_type": "must be a number (not text or true/false)",
+                "int_type": "must be a whole number (not text, true/false or 3.0)",
+                "int_from_float": "must be a whole number",
+                "float_parsing": "must be a number",
+                "int_parsing": "must be a whole number",
+                "finite_number": "must be a finite number (not inf or nan)"}.get(kind, msg)
+    if kind == "greater_than":
+        return f"must be > {ctx.get('gt')}"
+    if kind == "greater_than_equal":
+        return f"must be >= {ctx.get('ge')}"
+    if kind == "less_than":
+        return f"must be < {ctx.get('lt')}"
+    if kind == "less_than_equal":
+        return f"must be <= {ctx.get('le')}"
+    if kind in ("tuple_type", "list_type"):
+        return "must be a list, e.g. [0.0, 0.0, 1.0]"
+    if kind == "too_short" or kind == "too_long":
+        return msg.replace("Tuple", "list").replace("List", "list")
+    if kind == "model_type" or kind == "dict_type":
+        keys = ""
+        return "must be a mapping of keys (key: value)" + keys
+    if kind == "bool_type":
+        return "must be true or false"
+    if kind == "string_type":
+        return "must be text"
+    return msg
+
+
+def validate_file(model: type[BaseModel], data: Any, *, file: str | Path,
+                  marks: dict[tuple, int] | None = None, context: dict | None = None):
+    """Validate plain data against ``model``; on failure raise one readable ConfigError."""
+    marks = marks or {}
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"{file}: the file must hold a mapping of keys (key: value), "
+                          f"found {type(data).__name__}")
+    try:
+        return model.model_validate(data, context=context)
+    except ValidationError as exc:
+        lines, problems = [], []
+        for err in exc.errors(include_url=False):
+            path, parent = _describe_path(model, tuple(err["loc"]))
+            # the innermost line we know: the key itself, or its closest parent
+            line = None
+            for cut in range(len(path), -1, -1):
+                if path[:cut] in marks:
+                    line = marks[path[:cut]]
+                    break
+            where = f"{file}:{line}" if line else str(file)
+            key = format_key_path(path)
+            reason = _explain(err, parent if err["type"] == "extra_forbidden" else None)
+            shown = ""
+            if err["type"] not in ("missing",) and "input" in err:
+                if err["type"] == "extra_forbidden":
+                    shown = ""
+                elif not isinstance(err["input"], dict):
+                    shown = f" (got {_short(err['input'])})"
+            lines.append(f"{where}: {key}: {reason}{shown}")
+            problems.append({"file": str(file), "line": line, "key": key, "problem": reason,
+                             "value": err.get("input")})
+        head = (f"{file}: {len(lines)} problem{'s' if len(lines) > 1 else ''} found:\n  "
+                if len(lines) > 1 else "")
+        raise ConfigError(head + "\n  ".join(lines), problems) from None
