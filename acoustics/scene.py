@@ -548,8 +548,8 @@ class Scene(ConfigModel):
             if "sound_speed_m_s" in med and med["sound_speed_m_s"] is None:
                 med["sound_speed_m_s"] = round(float(mackenzie_sound_speed_m_s(t, s, d)), 6)
             if med.get("absorption_db_per_m") is None:
-                c = med.get("sound_speed_m_s", 1530.0)
-                alpha = francois_garrison_db_per_m(f0, t, s, d, ph, c if _is_num(c) and c > 0 else None)
+                # F&G with its own sound-speed fit, as the formula was calibrated
+                alpha = francois_garrison_db_per_m(f0, t, s, d, ph)
                 med["absorption_db_per_m"] = float(f"{float(alpha):.6g}")
         if noise.get("bandwidth_hz") is None:
             band, rate = samp.get("receiver_bandwidth_hz"), samp.get("rate_hz", 45_455.0)

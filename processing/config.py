@@ -314,11 +314,16 @@ def _explain(err: dict, parent: type[BaseModel] | None) -> str:
         keys = ", ".join(_accepted_keys(parent)) if parent else "?"
         return f"unknown key; accepted keys here: {keys}"
     if kind == "missing":
+        if err["loc"] and isinstance(err["loc"][-1], int):
+            return "this list is too short (an entry is missing)"
         return "required key is missing"
     if kind == "literal_error":
         return f"not an accepted value; accepted: {ctx.get('expected', '')}"
-    if kind in ("union_tag_invalid", "union_tag_not_found"):
-        return f"{msg}"
+    if kind == "union_tag_invalid":
+        return (f"{ctx.get('discriminator', 'kind')} {ctx.get('tag')!r} is not accepted; "
+                f"accepted: {ctx.get('expected_tags')}")
+    if kind == "union_tag_not_found":
+        return f"the key {ctx.get('discriminator', 'kind')} is required here"
     if kind.startswith("float") or kind.startswith("int"):
         return {"float_type": "must be a number (not text or true/false)",
                 "int_type": "must be a whole number (not text, true/false or 3.0)",
@@ -381,6 +386,9 @@ def validate_file(model: type[BaseModel], data: Any, *, file: str | Path,
             lines.append(f"{where}: {key}: {reason}{shown}")
             problems.append({"file": str(file), "line": line, "key": key, "problem": reason,
                              "value": err.get("input")})
+        order = sorted(range(len(lines)), key=lambda i: (problems[i]["line"] or 0, i))
+        lines = [lines[i] for i in order]
+        problems = [problems[i] for i in order]
         head = (f"{file}: {len(lines)} problem{'s' if len(lines) > 1 else ''} found:\n  "
                 if len(lines) > 1 else "")
         raise ConfigError(head + "\n  ".join(lines), problems) from None

@@ -1,0 +1,34 @@
+"""Shared fixtures. Every random draw in the tests is seeded."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = ROOT / "scenes"
+
+#: ABACUS numbers (../shared/reference/ABACUS.md)
+C_M_S = 1530.0
+F0_HZ = 420_375.0
+LAMBDA_M = C_M_S / F0_HZ
+K_RAD_M = 2 * np.pi / LAMBDA_M
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(12345)
+
+
+@pytest.fixture
+def write_scene(tmp_path):
+    """Write YAML text to a scene file in a temporary folder; return its path."""
+    def _write(text: str, name: str = "scene.yaml") -> Path:
+        p = tmp_path / name
+        p.write_text(text)
+        return p
+    return _write
