@@ -9,6 +9,7 @@ import warnings
 from pathlib import Path
 
 from processing.config import ConfigError
+from processing.dataset import DatasetError
 
 __all__ = ["main"]
 
@@ -75,6 +76,52 @@ def cmd_beams(args) -> int:
     return 0
 
 
+class _Progress:
+    """A one-line progress bar on stderr, only when stderr is a terminal."""
+
+    def __init__(self, label: str):
+        self.label = label
+        self.on = sys.stderr.isatty()
+
+    def __call__(self, done: int, total: int):
+        if not self.on:
+            return
+        width = 30
+        fill = int(width * done / max(total, 1))
+        end = "\n" if done >= total else ""
+        print(f"\r{self.label} [{'#' * fill}{'.' * (width - fill)}] {done}/{total}", end=end,
+              file=sys.stderr, flush=True)
+
+
+def _ping_list(scene, n: int | None):
+    if n is None:
+        return None
+    if n < 1:
+        raise UsageError(f"--pings must be >= 1, got {n}")
+    return range(scene.pings.first, scene.pings.first + n)
+
+
+def cmd_simulate(args) -> int:
+    from processing.dataset import write_tree
+    from .simulate import simulate
+    scene = _load(args.scene)
+    out = Path(args.output)
+    fmt = args.format or ("zarr" if out.suffix == ".zarr" else "netcdf")
+    if args.seed is not None and args.seed < 0:
+        raise UsageError(f"--seed must be >= 0, got {args.seed}")
+    tree = simulate(scene, pings=_ping_list(scene, args.pings), seed=args.seed,
+                    progress=_Progress("simulate"))
+    write_tree(tree, out, fmt=fmt)
+    prov = tree["Provenance"].ds
+    n_p = tree["Simulation/Element_group1"].sizes["ping_time"]
+    print(f"wrote {out} ({fmt}): {n_p} ping(s); stages: "
+          + ", ".join(f"{s} {t:.2f} s" for s, t in zip(prov["stage"].values, prov["stage_seconds"].values)))
+    clipped = tree["Simulation/Element_group1"].ds.get("adc_clipped_samples")
+    if clipped is not None and int(clipped.sum()):
+        print(f"warning: the ADC clipped {int(clipped.sum())} samples", file=sys.stderr)
+    return 0
+
+
 def cmd_run(args) -> int:
     scene = _load(args.scene)
     outdir = Path(args.output or Path("runs") / scene.name)
@@ -106,6 +153,14 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     b.add_argument("--plots", metavar="DIR", help="write PNG plots into DIR")
     b.set_defaults(func=cmd_beams)
+
+    m = sub.add_parser("simulate", help="simulate a scene's per-element echoes into a dataset")
+    m.add_argument("scene", help="scene file (YAML)")
+    m.add_argument("-o", "--output", required=True, help="output file (.nc) or folder (.zarr)")
+    m.add_argument("--pings", type=int, help="number of pings (default: the scene's)")
+    m.add_argument("--seed", type=int, help="seed (default: the scene's)")
+    m.add_argument("--format", choices=["netcdf", "zarr"], help="default from the suffix")
+    m.set_defaults(func=cmd_simulate)
     return p
 
 
@@ -116,6 +171,9 @@ def main(argv=None) -> int:
     try:
         return int(args.func(args) or 0)
     except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except DatasetError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except UsageError as exc:

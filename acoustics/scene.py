@@ -487,6 +487,17 @@ class PingsSpec(ConfigModel):
     """Index of the first ping; pings first .. first + count - 1."""
     interval_s: PositiveReal = 1.0
     """Ping interval (s); ABACUS runs at 1 Hz."""
+    start_time: str = "2000-01-01T00:00:00"
+    """Time of ping 0 (ISO 8601, UTC); ping p is at start_time + p x interval_s."""
+
+    @model_validator(mode="after")
+    def _time(self):
+        try:
+            np.datetime64(self.start_time, "ns")
+        except ValueError:
+            raise ValueError("start_time must be an ISO 8601 time such as "
+                             "2000-01-01T00:00:00") from None
+        return self
 
 
 class EffectsSpec(ConfigModel):

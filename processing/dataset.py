@@ -1,0 +1,267 @@
+"""The data contract between the simulator (or a recorder) and processing, and its I/O.
+
+Layout (ICES SONAR-netCDF4 as echopype lays it out; docs/dataset.md has every variable)::
+
+    /                               conventions, title, summary, date_created, software_*
+    /Environment                    sound_speed_indicative, absorption_indicative, ...
+    /Platform                       sonar pose in the world frame
+    /Provenance                     resolved scene text, sha256, seed, versions, stage timings
+    /Sonar                          transmit pulse + replica, transmitter elements, channel_all
+    /Simulation/Element_group1      element_r/element_i (ping_time, rx_element, range_sample)
+                                    float32, receiver element geometry, sample interval/offset
+    /Simulation/Ground_truth        targets per ping (simulated data only)
+    /Processing                     images, phase, elevation, detections, counts (processing)
+
+Complex arrays are stored as ``_r``/``_i`` float32 pairs; ``range_sample`` stays in one chunk.
+This is the only module that writes NetCDF or Zarr. Writes are atomic: a temporary file (or
+folder) next to the target is renamed over it when complete, so an interrupted write never leaves
+a half file under the final name.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+__all__ = ["DatasetError", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "TRUTH_GROUP",
+           "write_tree", "open_tree", "complex_of", "split_complex", "SonarRecord",
+           "read_record"]
+
+FORMATS = ("netcdf", "zarr")
+CONVENTIONS = "CF-1.7, SONAR-netCDF4-1.0, ACDD-1.3"
+ELEMENT_GROUP = "Simulation/Element_group1"
+TRUTH_GROUP = "Simulation/Ground_truth"
+
+
+class DatasetError(ValueError):
+    """A dataset that does not follow the contract; the message names file, group, variable."""
+
+
+# ------------------------------------------------------------------------- I/O
+def _format_of(path: Path, fmt: str | None) -> str:
+    if fmt is None:
+        fmt = "zarr" if path.suffix == ".zarr" else "netcdf"
+    if fmt not in FORMATS:
+        raise DatasetError(f"format must be one of {FORMATS}, got {fmt!r}")
+    return fmt
+
+
+def _encoding(tree: xr.DataTree) -> dict:
+    """Keep each variable's range_sample axis in one chunk; chunk along pings."""
+    enc = {}
+    for node in tree.subtree:
+        per = {}
+        for name, var in node.ds.data_vars.items():
+            if "ping_time" in var.dims and var.ndim >= 2:
+                chunks = tuple(1 if d == "ping_time" else var.sizes[d] for d in var.dims)
+                per[name] = {"chunksizes": chunks}
+        if per:
+            enc[node.path] = per
+    return enc
+
+
+def write_tree(tree: xr.DataTree, path: str | Path, *, fmt: str | None = None) -> Path:
+    """Write a dataset atomically as NetCDF4 (default) or Zarr.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+    path : str or Path
+        Final file (``.nc``) or folder (``.zarr``).
+    fmt : {"netcdf", "zarr"}, optional
+        Default from the suffix (``.zarr`` -> zarr, otherwise netcdf).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    path = Path(path)
+    fmt = _format_of(path, fmt)
+    if not path.parent.exists():
+        raise DatasetError(f"{path}: the folder {path.parent} does not exist")
+    tmp = path.with_name(f".{path.name}.tmp-{uuid.uuid4().hex[:8]}")
+    try:
+        if fmt == "netcdf":
+            enc = _encoding(tree)
+            tree.to_netcdf(tmp, engine="netcdf4", encoding=enc or None)
+            os.replace(tmp, path)
+        else:
+            tree.to_zarr(tmp, mode="w", consolidated=False, zarr_format=2)
+            if path.exists():
+                old = path.with_name(f".{path.name}.old-{uuid.uuid4().hex[:8]}")
+                os.replace(path, old)
+                os.replace(tmp, path)
+                shutil.rmtree(old, ignore_errors=True)
+            else:
+                os.replace(tmp, path)
+    except BaseException:
+        if tmp.is_dir():
+            shutil.rmtree(tmp, ignore_errors=True)
+        elif tmp.exists():
+            tmp.unlink()
+        raise
+    return path
+
+
+def open_tree(path: str | Path) -> xr.DataTree:
+    """Open a dataset written by :func:`write_tree` (or any SONAR-netCDF4-like file) fully in memory.
+
+    Raises
+    ------
+    DatasetError
+        Missing or unreadable file, with the reason.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise DatasetError(f"{path}: no such file or folder")
+    try:
+        if path.is_dir():
+            tree = xr.open_datatree(path, engine="zarr", consolidated=False)
+        else:
+            tree = xr.open_datatree(path, engine="netcdf4")
+        return tree.load()
+    except DatasetError:
+        raise
+    except Exception as exc:  # a foreign or damaged file: say so in one line
+        raise DatasetError(f"{path}: cannot be read as a NetCDF4/Zarr dataset "
+                           f"({exc.__class__.__name__}: {exc})") from None
+
+
+def split_complex(name: str, values, dims, attrs=None) -> dict:
+    """``{name_r: DataArray, name_i: DataArray}`` float32 pair for a complex array."""
+    v = np.asarray(values)
+    attrs = dict(attrs or {})
+    return {f"{name}_r": xr.DataArray(v.real.astype(np.float32), dims=dims, attrs=attrs),
+            f"{name}_i": xr.DataArray(v.imag.astype(np.float32), dims=dims, attrs=attrs)}
+
+
+def complex_of(ds: xr.Dataset, name: str, *, where: str = "") -> np.ndarray:
+    """Rebuild a complex array from its ``_r``/``_i`` pair (complex128)."""
+    try:
+        re, im = ds[f"{name}_r"], ds[f"{name}_i"]
+    except KeyError:
+        raise DatasetError(f"{where}: missing variables {name}_r/{name}_i") from None
+    return re.values.astype(np.float64) + 1j * im.values.astype(np.float64)
+
+
+# ------------------------------------------------------------- processing view
+@dataclass(frozen=True, eq=False)
+class SonarRecord:
+    """What processing needs from a dataset, in SI units and the sonar frame.
+
+    Attributes
+    ----------
+    samples : ndarray, shape (n_pings, n_channels, n_samples), complex128
+        Per-element complex baseband samples (ADC counts).
+    ping_index : ndarray of int, shape (n_pings,)
+    rate_hz : float
+        Sampling rate.
+    time_offset_s : float
+        Time of sample 0 after the start of transmission.
+    replica : ndarray, shape (M,), complex128
+        Sampled transmit pulse u(j/fs).
+    center_frequency_hz, bandwidth_hz, sound_speed_m_s : float
+    element_position_m : ndarray, shape (n_channels, 3)
+        Receiver element centres (m), sonar frame.
+    element_subarray : ndarray of str, shape (n_channels,)
+    transmitter_position_m : ndarray, shape (n_tx, 3)
+        Transmitter element centres (m).
+    transmitter_weight : ndarray, shape (n_tx,)
+    mode : str
+        "interferometric", "normal" or "combined".
+    source : str
+        File the record came from (for messages).
+    """
+
+    samples: np.ndarray
+    ping_index: np.ndarray
+    rate_hz: float
+    time_offset_s: float
+    replica: np.ndarray
+    center_frequency_hz: float
+    bandwidth_hz: float
+    sound_speed_m_s: float
+    element_position_m: np.ndarray
+    element_subarray: np.ndarray
+    transmitter_position_m: np.ndarray
+    transmitter_weight: np.ndarray
+    mode: str
+    source: str = ""
+
+    @property
+    def wavelength_m(self) -> float:
+        return self.sound_speed_m_s / self.center_frequency_hz
+
+    @property
+    def image_groups(self) -> dict:
+        """Channel indices of each image: {"A": ..., "B": ...}, or {"AB": all} in combined mode."""
+        names = self.element_subarray
+        if self.mode == "combined":
+            return {"AB": np.arange(len(names))}
+        return {str(s): np.flatnonzero(names == s) for s in dict.fromkeys(names.tolist())}
+
+    @property
+    def transmitter_center_m(self) -> np.ndarray:
+        w = np.abs(self.transmitter_weight)
+        return (self.transmitter_position_m * w[:, None]).sum(0) / w.sum()
+
+
+def _need(tree, group, name, where):
+    try:
+        node = tree[group]
+    except KeyError:
+        raise DatasetError(f"{where}: missing group /{group}") from None
+    if name not in node.ds.variables:
+        raise DatasetError(f"{where}: /{group} has no variable '{name}'")
+    return node.ds[name]
+
+
+def read_record(tree: xr.DataTree, *, source: str = "") -> SonarRecord:
+    """The processing view of a dataset; every missing or malformed piece is named.
+
+    Raises
+    ------
+    DatasetError
+    """
+    where = source or "dataset"
+    eg = ELEMENT_GROUP
+    try:
+        node = tree[eg]
+    except KeyError:
+        raise DatasetError(f"{where}: missing group /{eg} (per-element samples)") from None
+    ds = node.ds
+    samples = complex_of(ds, "element", where=f"{where}: /{eg}")
+    if samples.ndim != 3:
+        raise DatasetError(f"{where}: /{eg}/element_r must have dims (ping_time, rx_element, "
+                           f"range_sample), found {ds['element_r'].dims}")
+    if not np.all(np.isfinite(samples)):
+        raise DatasetError(f"{where}: /{eg}/element_r/_i contain NaN or inf samples")
+    interval = float(_need(tree, eg, "sample_interval", where).values)
+    if not interval > 0:
+        raise DatasetError(f"{where}: /{eg}/sample_interval must be > 0 s, found {interval}")
+    offset = float(_need(tree, eg, "sample_time_offset", where).values)
+    pos = np.stack([_need(tree, eg, f"element_{a}", where).values for a in "xyz"], -1).astype(float)
+    sub = np.asarray(_need(tree, eg, "element_subarray", where).values).astype(str)
+    sonar = tree["Sonar"].ds if "Sonar" in tree.children else None
+    if sonar is None:
+        raise DatasetError(f"{where}: missing group /Sonar (transmit pulse)")
+    replica = complex_of(sonar, "replica", where=f"{where}: /Sonar")
+    tx = np.stack([_need(tree, "Sonar", f"tx_element_{a}", where).values for a in "xyz"], -1)
+    txw = _need(tree, "Sonar", "tx_element_weight", where).values.astype(float)
+    f0 = float(_need(tree, "Sonar", "transmit_frequency_center", where).values)
+    bw = float(_need(tree, "Sonar", "transmit_bandwidth", where).values)
+    c = float(_need(tree, "Environment", "sound_speed_indicative", where).values)
+    mode = str(ds.attrs.get("mode", "interferometric"))
+    if mode not in ("interferometric", "normal", "combined"):
+        raise DatasetError(f"{where}: /{eg} attribute mode={mode!r}; accepted: interferometric, "
+                           f"normal, combined")
+    ping = (ds["ping_index"].values.astype(int) if "ping_index" in ds.variables
+            else np.arange(samples.shape[0]))
+    return SonarRecord(samples, ping, 1.0 / interval, offset, replica, f0, bw, c, pos, sub,
+                       tx.astype(float), txw, mode, where)
