@@ -12,7 +12,10 @@ argument reduction. Here the phase is reduced *in cycles* first — frac((r1 + r
 - :func:`exp_small` : e^x for |x| <= 0.05 (degree-8 Taylor, relative error < 1e-16), used for
   the absorption difference between the two legs of a path.
 
-tests/test_kernels.py checks each against numpy over its whole domain.
+tests/test_kernels_targets.py checks each against numpy over its whole domain. They are written
+without data-dependent branches (quadrants by selects) so that the loops calling them vectorise;
+callers must compile with ``error_model="numpy"`` (numba's default Python error model puts a
+zero check on every division, which stops LLVM from vectorising).
 """
 from __future__ import annotations
 
@@ -32,7 +35,7 @@ _TWO_PI = 2 * np.pi
 EXP_SMALL_LIMIT = 0.05
 
 
-@nb.njit(cache=True, inline="always", fastmath=True)
+@nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
 def sincos(x):
     """(sin x, cos x) for |x| up to ~1e3 rad; absolute error <= 2e-16 (4 + |x|)."""
     q = np.floor(x * _TWO_OVER_PI + 0.5)
@@ -47,14 +50,14 @@ def sincos(x):
     return (-a if qi & 2 else a), (-b if (qi + 1) & 2 else b)
 
 
-@nb.njit(cache=True, inline="always", fastmath=True)
+@nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
 def cis_cycles(cycles):
     """(sin 2πc, cos 2πc) for any float64 c, reduced in cycles first."""
     f = cycles - np.floor(cycles + 0.5)
     return sincos(_TWO_PI * f)
 
 
-@nb.njit(cache=True, inline="always", fastmath=True)
+@nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
 def sin_over(a):
     """sin(a)/a with the removable singularity filled (1 at a = 0)."""
     if abs(a) < 1e-5:
@@ -63,7 +66,7 @@ def sin_over(a):
     return s / a
 
 
-@nb.njit(cache=True, inline="always", fastmath=True)
+@nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
 def exp_small(x):
     """e^x for |x| <= EXP_SMALL_LIMIT."""
     return 1.0 + x * (1.0 + x * (0.5 + x * (1.0 / 6 + x * (1.0 / 24 + x * (1.0 / 120 + x * (

@@ -511,7 +511,7 @@ class EffectsSpec(ConfigModel):
     """Elements do not radiate behind their plane."""
     synthesis: Literal["fast", "exact"] = "fast"
     """Echo synthesis: fractional-delay kernel + FFT convolution, or exact evaluation."""
-    kernel_length: PositiveCount = Field(16, ge=2, le=64)
+    kernel_length: PositiveCount = Field(8, ge=2, le=64)
     """Windowed-sinc fractional-delay kernel length in samples (fast only)."""
     spreading: bool = True
     """Spherical spreading 1/r per leg."""
