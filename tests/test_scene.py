@@ -72,7 +72,7 @@ def test_resolved_scene_fills_every_default(write_scene):
     s = load_scene(write_scene("name: minimal\n"), check=False)
     text = s.resolved_text()
     for key in ("absorption_db_per_m:", "receiver_bandwidth_hz: 22727.5", "preset_geometry:",
-                "transmitter_stagger_m: 0.0015", "kernel_length: 16", "bandwidth_hz: 22727.5"):
+                "transmitter_stagger_m: 0.0015", "kernel_length: 8", "bandwidth_hz: 22727.5"):
         assert key in text, key
     assert "null" not in text.split("processing:")[0].replace("transmitter: null", "").replace(
         "receiver: null", "").replace("density_per_m3: null", "")
