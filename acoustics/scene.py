@@ -512,7 +512,9 @@ class EffectsSpec(ConfigModel):
     synthesis: Literal["fast", "exact"] = "fast"
     """Echo synthesis: fractional-delay kernel + FFT convolution, or exact evaluation."""
     kernel_length: PositiveCount = Field(8, ge=2, le=64)
-    """Windowed-sinc fractional-delay kernel length in samples (fast only)."""
+    """Windowed-sinc fractional-delay kernel length in fine-grid samples (fast only)."""
+    oversampling: PositiveCount = Field(2, le=16)
+    """Fast synthesis runs on a grid this many times finer than the samples (fast only)."""
     spreading: bool = True
     """Spherical spreading 1/r per leg."""
     absorption: bool = True

@@ -111,7 +111,8 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
             strength = targets.rho_m * np.exp(1j * targets.phase_rad)
             x = synthesize(setup.model, targets.position_sonar_m, strength, pulse=setup.pulse,
                            rate_hz=s.rate_hz, n_samples=s.samples, t0_s=s.time_offset_s,
-                           method=fx.synthesis, kernel_length=fx.kernel_length)
+                           method=fx.synthesis, kernel_length=fx.kernel_length,
+                           oversampling=fx.oversampling)
     else:
         x = np.zeros((n_ch, s.samples), complex)
     if scene.noise.enabled and scene.noise.sigma_counts > 0:

@@ -5,14 +5,18 @@ One function, two methods (the accuracy knob ``effects.synthesis``):
 ``exact`` (the reference)
     evaluates every arrival's envelope A u(t_i − τ) at every sample t_i it touches.
 ``fast``
-    spreads each arrival onto the sample grid with a Kaiser-windowed sinc fractional-delay kernel
-    of ``kernel_length`` taps (a band-limited impulse at τ), then convolves each channel with the
-    sampled pulse by one FFT. The FFT is long enough for the convolution to be linear: a late echo
-    never wraps round to the start of the record.
+    spreads each arrival onto a grid ``oversampling`` times finer than the samples with a
+    Kaiser-windowed sinc fractional-delay kernel of ``kernel_length`` taps (a band-limited
+    impulse at τ), convolves each channel with the pulse sampled on that grid by one FFT, and
+    keeps every ``oversampling``-th sample. The FFT is long enough for the convolution to be
+    linear: a late echo never wraps round to the start of the record.
 
-Why it works: the pulse occupies |f| ≲ B/2 of the band |f| < fs/2, so the kernel only has to be
-exact for |f| < B/2 and may do anything between B/2 and fs − B/2; its Kaiser β is chosen for that
-transition band (Kaiser's formula), which is what makes 16 taps good to well below −100 dB.
+Why it works: the pulse occupies |f| ≲ B/2, so the kernel only has to be exact for |f| < B/2 and
+may do anything between B/2 and U·fs − B/2; its Kaiser β is chosen for that transition band. What
+no band-limited method can reproduce is the part of the envelope's spectrum beyond the grid's
+Nyquist frequency, which ``exact`` aliases into its samples (the sqrt-Hann taper's kinks at the
+pulse ends put it at about −62 dB for fs = 45.455 kHz); the finer grid pushes that floor down
+(−70 dB at U = 2, −82 dB at U = 4). docs/accuracy.md has the table.
 """
 from __future__ import annotations
 
@@ -75,7 +79,8 @@ def fractional_delay_table(taps: int, transition: float, phases: int = _TABLE_PH
 
 
 def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz: float,
-               n_samples: int, t0_s: float = 0.0, method: str = "fast", kernel_length: int = 16):
+               n_samples: int, t0_s: float = 0.0, method: str = "fast", kernel_length: int = 8,
+               oversampling: int = 2):
     """Complex baseband samples of every receiver element for a set of point scatterers.
 
     Parameters
@@ -95,7 +100,9 @@ def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz
         Time (s) of sample 0 after the start of transmission.
     method : {"fast", "exact"}
     kernel_length : int
-        Fractional-delay kernel taps (``fast`` only).
+        Fractional-delay kernel taps on the fine grid (``fast`` only).
+    oversampling : int
+        Fine-grid factor U >= 1 (``fast`` only).
 
     Returns
     -------
@@ -113,7 +120,9 @@ def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz
         return np.zeros((n_rx, n_samples), complex)
     if method == "exact":
         return _exact(model, p, q, pulse, rate_hz, n_samples, t0_s)
-    return _fast(model, p, q, pulse, rate_hz, n_samples, t0_s, kernel_length)
+    if int(oversampling) < 1:
+        raise ValueError(f"oversampling must be >= 1, got {oversampling}")
+    return _fast(model, p, q, pulse, rate_hz, n_samples, t0_s, kernel_length, int(oversampling))
 
 
 def _exact(model, p, q, pulse, fs, n, t0):
@@ -141,16 +150,17 @@ def _exact(model, p, q, pulse, fs, n, t0):
     return (out_r + 1j * out_i).reshape(n_rx, n)
 
 
-def _fast(model, p, q, pulse, fs, n, t0, taps):
-    replica = pulse.replica(fs)
+def _fast(model, p, q, pulse, fs, n, t0, taps, up):
+    fine = fs * up
+    replica = pulse.replica(fine)
     m = replica.size
     # room for an echo that starts up to a pulse length plus half a kernel before sample 0
     q0 = m + taps
-    n_out = q0 + n + taps
-    band = min(pulse.bandwidth_hz + 4.0 / pulse.duration_s, 0.98 * fs)
-    table = fractional_delay_table(int(taps), (fs - band) / fs)
-    delta = spread_arrivals(model, p, q, table=table, t0_s=t0, rate_hz=fs, q0=q0, n_out=n_out)
+    n_out = q0 + up * n + taps
+    band = min(pulse.bandwidth_hz + 4.0 / pulse.duration_s, 0.98 * fine)
+    table = fractional_delay_table(int(taps), (fine - band) / fine)
+    delta = spread_arrivals(model, p, q, table=table, t0_s=t0, rate_hz=fine, q0=q0, n_out=n_out)
     nfft = sfft.next_fast_len(n_out + m - 1)  # linear, not circular, convolution
     spec = sfft.fft(delta, nfft, axis=1, workers=-1) * sfft.fft(replica, nfft)
     full = sfft.ifft(spec, axis=1, workers=-1)
-    return full[:, q0:q0 + n]
+    return full[:, q0:q0 + up * n:up]
