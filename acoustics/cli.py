@@ -122,6 +122,23 @@ def cmd_simulate(args) -> int:
     return 0
 
 
+def cmd_image(args) -> int:
+    import processing
+    from processing.dataset import open_tree, write_tree
+    tree = open_tree(args.input)
+    out_tree = processing.image(tree, args.settings)
+    if args.output:
+        write_tree(out_tree, Path(args.output))
+        print(f"wrote {args.output}")
+    if args.plots:
+        from processing.plots import image_figures
+        for p in image_figures(processing.images_of(out_tree), Path(args.plots), ping=args.ping):
+            print(f"wrote {p}")
+    if not args.output and not args.plots:
+        raise UsageError("abacus image: give -o OUT and/or --plots DIR")
+    return 0
+
+
 def cmd_run(args) -> int:
     scene = _load(args.scene)
     outdir = Path(args.output or Path("runs") / scene.name)
@@ -161,6 +178,14 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--seed", type=int, help="seed (default: the scene's)")
     m.add_argument("--format", choices=["netcdf", "zarr"], help="default from the suffix")
     m.set_defaults(func=cmd_simulate)
+
+    i = sub.add_parser("image", help="pulse compression, beamforming, interferometry of a dataset")
+    i.add_argument("input", help="dataset (.nc or .zarr)")
+    i.add_argument("-o", "--output", help="output dataset with /Processing added")
+    i.add_argument("--plots", metavar="DIR", help="write PNG figures into DIR")
+    i.add_argument("--settings", metavar="YAML", help="processing settings (default: the scene's)")
+    i.add_argument("--ping", type=int, default=0, help="ping to plot (index in the file)")
+    i.set_defaults(func=cmd_image)
     return p
 
 

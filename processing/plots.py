@@ -1,0 +1,166 @@
+"""Figures of processing products (matplotlib, Agg; imported lazily by the CLI).
+
+Like the thesis' Figures 4.8 (image), 4.13 (fan-beam image), 4.1/4.4 (range profiles) and
+4.16 (interferometric phase). Every axis is labelled with its unit.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from scipy.ndimage import map_coordinates
+
+__all__ = ["fan_beam", "plot_fan", "plot_range_profiles", "plot_phase_map", "save"]
+
+
+def fan_beam(magnitude, range_m, beam_angle_rad, *, pixel_m: float | None = None,
+             with_mask: bool = False):
+    """Cartesian (fan-beam) image by bilinear interpolation (thesis §4.6).
+
+    Parameters
+    ----------
+    magnitude : ndarray, shape (n_range, n_beams)
+        |I(r, θ)| on a uniform range grid and beams uniform in sin θ (or any increasing θ).
+    range_m : ndarray, shape (n_range,)
+    beam_angle_rad : ndarray, shape (n_beams,)
+    pixel_m : float, optional
+        Pixel size (m); default a quarter of the range resolution cell so the grid is finer
+        than the resolution in both directions.
+
+    Returns
+    -------
+    x_m : ndarray, shape (nx,)
+        Across-track coordinate (m), positive towards +θ.
+    z_m : ndarray, shape (nz,)
+        Along-boresight coordinate (m).
+    img : ndarray, shape (nz, nx)
+        Interpolated magnitude; 0 outside the fan.
+    inside : ndarray of bool, shape (nz, nx)
+        Only with ``with_mask``: pixels inside the fan.
+    """
+    mag = np.asarray(magnitude, float)
+    r = np.asarray(range_m, float)
+    th = np.asarray(beam_angle_rad, float)
+    dr = float(np.median(np.diff(r))) if r.size > 1 else 0.01
+    pixel = pixel_m or max(dr, 1e-3)
+    x_max = r[-1] * np.sin(np.abs(th).max())
+    x = np.arange(-x_max, x_max + pixel, pixel)
+    z0 = r[0] * np.cos(np.abs(th).max())
+    z = np.arange(z0, r[-1] + pixel, pixel)
+    zz, xx = np.meshgrid(z, x, indexing="ij")
+    rr = np.hypot(xx, zz)
+    tt = np.arctan2(xx, zz)
+    ri = np.interp(rr, r, np.arange(r.size), left=-1, right=-1)
+    # interpolate in sin θ, in which FFT beams are uniform
+    ti = np.interp(np.sin(tt), np.sin(th), np.arange(th.size), left=-1, right=-1)
+    inside = (ri >= 0) & (ti >= 0)
+    img = map_coordinates(mag, [np.where(inside, ri, 0), np.where(inside, ti, 0)], order=1)
+    img = np.where(inside, img, 0.0)
+    return (x, z, img, inside) if with_mask else (x, z, img)
+
+
+def _db(x, ref):
+    return 20 * np.log10(np.maximum(np.asarray(x, float), ref * 1e-6) / ref)
+
+
+def plot_fan(ax, magnitude, range_m, beam_angle_rad, *, dynamic_range_db=40.0, title="",
+             detections=None):
+    """Fan-beam image in dB re its maximum, with a colour bar; optional detections (x, z)."""
+    x, z, img, inside = fan_beam(magnitude, range_m, beam_angle_rad, with_mask=True)
+    ref = max(float(np.max(magnitude)), 1e-300)
+    db = np.ma.masked_where(~inside, _db(img, ref))
+    m = ax.pcolormesh(x, z, db, shading="auto", cmap="viridis", vmin=-dynamic_range_db, vmax=0,
+                      rasterized=True)
+    ax.set_facecolor("white")
+    ax.set_aspect("equal")
+    ax.set_xlabel("across-track x (m)")
+    ax.set_ylabel("along boresight z (m)")
+    ax.set_title(title)
+    cb = ax.figure.colorbar(m, ax=ax, fraction=0.046, pad=0.04)
+    cb.set_label("|I| (dB re max)")
+    if detections is not None and len(detections[0]):
+        ax.plot(detections[0], detections[1], "o", mfc="none", mec="r", ms=9, mew=1.2,
+                label="detections")
+        ax.legend(loc="upper right", fontsize=8)
+    return m
+
+
+def plot_range_profiles(ax, image, range_m, beam_angle_rad, *, n_profiles=3):
+    """|I| vs range through the beams of the brightest cells (dB re max)."""
+    mag = np.abs(image)
+    ref = max(float(mag.max()), 1e-300)
+    order = np.argsort(mag.max(axis=0))[::-1][:n_profiles]
+    for b in sorted(order):
+        ax.plot(range_m, _db(mag[:, b], ref), lw=0.9,
+                label=f"beam {np.degrees(beam_angle_rad[b]):+.2f}°")
+    ax.set_xlabel("range r = ct/2 (m)")
+    ax.set_ylabel("|I| (dB re max)")
+    ax.set_ylim(-60, 3)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+
+
+def plot_phase_map(ax, psi, magnitude, range_m, beam_angle_rad, *, floor_db=-30.0):
+    """Wrapped ψ_AB over (azimuth, range); cells below ``floor_db`` re max are greyed out."""
+    ref = max(float(np.max(magnitude)), 1e-300)
+    shown = np.ma.masked_where(_db(magnitude, ref) < floor_db, psi)
+    m = ax.pcolormesh(np.degrees(beam_angle_rad), range_m, shown, shading="auto", cmap="twilight",
+                      vmin=-np.pi, vmax=np.pi, rasterized=True)
+    ax.set_facecolor("0.85")
+    ax.set_xlabel("azimuth θ (deg)")
+    ax.set_ylabel("range r (m)")
+    cb = ax.figure.colorbar(m, ax=ax)
+    cb.set_label("ψ_AB (rad)")
+
+
+def save(fig, path: Path):
+    """Write a figure atomically (temporary file, then rename)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.stem}.tmp.png")
+    fig.savefig(tmp, dpi=110)
+    tmp.replace(path)
+    return path
+
+
+def image_figures(images: dict, outdir: Path, *, ping: int = 0) -> list[Path]:
+    """fan_beam.png, image.png (I(r, θ)), range_profiles.png and phase.png for one ping."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    img = images["image"][ping]
+    groups = images["groups"]
+    r, th = images["range_m"], images["beam_angle_rad"]
+    paths = []
+    fig, axes = plt.subplots(1, len(groups), figsize=(5.5 * len(groups), 7), constrained_layout=True,
+                             squeeze=False)
+    for ax, g, im in zip(axes[0], groups, img):
+        plot_fan(ax, np.abs(im), r, th, title=f"fan-beam image, subarray {g}, ping {ping}")
+    paths.append(save(fig, outdir / "fan_beam.png"))
+    plt.close(fig)
+    fig, axes = plt.subplots(1, len(groups), figsize=(5.5 * len(groups), 6), constrained_layout=True,
+                             squeeze=False)
+    for ax, g, im in zip(axes[0], groups, img):
+        mag = np.abs(im)
+        m = ax.pcolormesh(np.degrees(th), r, _db(mag, max(mag.max(), 1e-300)), shading="auto",
+                          vmin=-40, vmax=0, rasterized=True)
+        ax.set_xlabel("azimuth θ (deg)")
+        ax.set_ylabel("range r (m)")
+        ax.set_title(f"I(r, θ), subarray {g}")
+        fig.colorbar(m, ax=ax).set_label("|I| (dB re max)")
+    paths.append(save(fig, outdir / "image.png"))
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(9, 4), constrained_layout=True)
+    plot_range_profiles(ax, img[0], r, th)
+    ax.set_title(f"range profiles, subarray {groups[0]}, ping {ping}")
+    paths.append(save(fig, outdir / "range_profiles.png"))
+    plt.close(fig)
+    if images.get("interferometric_phase") is not None:
+        fig, ax = plt.subplots(figsize=(6.5, 6), constrained_layout=True)
+        plot_phase_map(ax, images["interferometric_phase"][ping], np.abs(img[0]), r, th)
+        ax.set_title(f"interferometric phase ψ_AB, ping {ping}")
+        paths.append(save(fig, outdir / "phase.png"))
+        plt.close(fig)
+    return paths
