@@ -108,5 +108,40 @@ def simulate_ping():
             + table(["stage", "seconds (10 pings)"], rows))
 
 
+@section
+def imaging():
+    import warnings
+
+    import scipy.fft as sfft
+
+    from acoustics import SceneWarning, load_scene
+    from acoustics.simulate import simulate
+    from processing.dataset import read_record
+    from processing.imaging import form_images
+    from processing.settings import ImageSettings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SceneWarning)
+        scene = load_scene(ROOT / "scenes" / "default.yaml")
+    rec = read_record(simulate(scene, pings=range(10)))
+    rows = []
+    for label, st in (("thesis settings: FFT, 32 beams, 4x, 13–26 m (default scene)", ImageSettings.model_validate(
+            {"range_m": [13, 26], "n_beams": 32, "interpolation": 4})),
+            ("FFT, 32 beams, 4x, whole record (10.5–68 m)", ImageSettings.model_validate(
+                {"range_m": None, "n_beams": 32, "interpolation": 4})),
+            ("delay-and-sum, 32 beams, 4x, 13–26 m", ImageSettings.model_validate(
+                {"beamformer": "delay_and_sum", "n_beams": 32})),
+            ("wideband, 32 beams, 4x, 13–26 m", ImageSettings.model_validate(
+                {"beamformer": "wideband", "n_beams": 32}))):
+        with sfft.set_workers(1):
+            form_images(rec, st)
+            t = best_time(lambda: form_images(rec, st), repeat=5)
+        rows.append([label, f"{t / 10 * 1e3:.1f}", f"{10 / t:.0f}"])
+    return ("## Imaging\n\n"
+            "16 channels x 4096 samples per ping, both subarrays imaged, interferogram and "
+            "elevation of every cell, one core (`scipy.fft` with one worker; no other "
+            "parallelism). Requirement: >= 30 pings per second for the thesis settings.\n\n"
+            + table(["setting", "ms per ping", "pings / s"], rows))
+
+
 if __name__ == "__main__":
     REPORT.main()

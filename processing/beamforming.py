@@ -143,7 +143,7 @@ def beamform_fft(y, geometry: SubarrayGeometry, n_beams: int, wavelength_m: floa
     d = geometry.pitch_m
     k = 2 * np.pi / wavelength_m
     ys = np.asarray(y)[..., geometry.order, :] * geometry.weights[:, None]
-    spec = sfft.fft(ys, n_beams, axis=-2, workers=-1)          # (..., n_beams, n_range)
+    spec = sfft.fft(ys, n_beams, axis=-2)          # (..., n_beams, n_range)
     spec = sfft.fftshift(spec, axes=-2)
     angles = fft_beam_angles(n_beams, d, wavelength_m)
     x0 = geometry.positions_m[0] - geometry.center_m

@@ -99,7 +99,7 @@ def compressed_spectra(samples, rfilter: RangeFilter):
     -------
     ndarray, shape (..., nfft), complex128
     """
-    return sfft.fft(np.asarray(samples), rfilter.nfft, axis=-1, workers=-1) * rfilter.spectrum
+    return sfft.fft(np.asarray(samples), rfilter.nfft, axis=-1) * rfilter.spectrum
 
 
 def to_time(spectra, rfilter: RangeFilter, *, upsample: int = 1, keep=None):
@@ -129,7 +129,7 @@ def to_time(spectra, rfilter: RangeFilter, *, upsample: int = 1, keep=None):
         big[..., :h] = spec[..., :h]
         big[..., n * up - (n - h):] = spec[..., h:]
         spec = big * up
-    out = sfft.ifft(spec, axis=-1, workers=-1)
+    out = sfft.ifft(spec, axis=-1)
     return out if keep is None else out[..., keep]
 
 
