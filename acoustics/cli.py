@@ -10,6 +10,7 @@ from pathlib import Path
 
 from processing.config import ConfigError
 from processing.dataset import DatasetError
+from processing.noise import NoiseEstimateError
 
 __all__ = ["main"]
 
@@ -139,14 +140,54 @@ def cmd_image(args) -> int:
     return 0
 
 
+def cmd_count(args) -> int:
+    import processing
+    from processing.dataset import open_tree, write_tree
+    tree = processing.count(open_tree(args.input), args.settings)
+    result = processing.count_summary(tree)
+    if args.output:
+        write_tree(tree, Path(args.output))
+    if args.csv:
+        processing.write_csv(tree, args.csv)
+    if args.plots:
+        from processing.plots import count_figures
+        n = tree["Processing/Counts"].sizes["ping_time"]
+        count_figures(tree, Path(args.plots), pings=range(min(n, 5)))
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(processing.format_counts(result))
+        for what, where in (("dataset", args.output), ("detections CSV", args.csv), ("plots", args.plots)):
+            if where:
+                print(f"wrote {what}: {where}")
+    return 0
+
+
 def cmd_run(args) -> int:
+    """The main job: simulate, image, detect, locate, count; dataset and plots in DIR."""
+    import processing
+    from processing.dataset import write_tree
+    from .simulate import simulate
     scene = _load(args.scene)
     outdir = Path(args.output or Path("runs") / scene.name)
     outdir.mkdir(parents=True, exist_ok=True)
-    print(f"scene '{scene.name}' ({args.scene}): valid, sha256 {scene.sha256()[:12]}")
+    print(f"scene '{scene.name}' ({args.scene}): {scene.pings.count} ping(s), "
+          f"sha256 {scene.sha256()[:12]}")
     (outdir / "scene.resolved.yaml").write_text(scene.resolved_text())
-    _beams(scene, outdir, False)
-    print(f"outputs in {outdir}/")
+    _beams(scene, outdir / "beams", False)
+    tree = simulate(scene, pings=_ping_list(scene, args.pings), progress=_Progress("simulate"))
+    tree = processing.count(tree)
+    result = processing.count_summary(tree)
+    write_tree(tree, outdir / "run.nc")
+    processing.write_csv(tree, outdir / "detections.csv")
+    (outdir / "counts.json").write_text(json.dumps(result, indent=1))
+    from processing.plots import count_figures, image_figures
+    image_figures(processing.images_of(tree), outdir / "images")
+    n = tree["Processing/Counts"].sizes["ping_time"]
+    count_figures(tree, outdir / "counts", pings=range(min(n, 3)))
+    print()
+    print(processing.format_counts(result))
+    print(f"\noutputs in {outdir}/: run.nc (dataset), detections.csv, counts.json, beams/, images/, counts/")
     return 0
 
 
@@ -155,9 +196,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="abacus", description=__doc__.split(".")[0] + ".")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    r = sub.add_parser("run", help="the main job on a scene (validate, beams; more to come)")
+    r = sub.add_parser("run", help="the main job: simulate, image, detect, locate, count")
     r.add_argument("scene", help="scene file (YAML)")
     r.add_argument("-o", "--output", help="output folder (default runs/<scene name>)")
+    r.add_argument("--pings", type=int, help="number of pings (default: the scene's)")
     r.set_defaults(func=cmd_run)
 
     s = sub.add_parser("scene", help="check a scene file, show it resolved, or print the schema")
@@ -186,6 +228,15 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--settings", metavar="YAML", help="processing settings (default: the scene's)")
     i.add_argument("--ping", type=int, default=0, help="ping to plot (index in the file)")
     i.set_defaults(func=cmd_image)
+
+    c = sub.add_parser("count", help="detect, locate and count targets in a dataset")
+    c.add_argument("input", help="dataset (.nc or .zarr); imaged first if needed")
+    c.add_argument("-o", "--output", help="output dataset with detections and counts")
+    c.add_argument("--settings", metavar="YAML", help="processing settings (default: the scene's)")
+    c.add_argument("--json", action="store_true", help="print one JSON object: per-ping counts and summary")
+    c.add_argument("--plots", metavar="DIR", help="detections over fan-beam images, counts vs ping")
+    c.add_argument("--csv", metavar="FILE", help="write the detections table as CSV")
+    c.set_defaults(func=cmd_count)
     return p
 
 
@@ -198,7 +249,7 @@ def main(argv=None) -> int:
     except ConfigError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    except DatasetError as exc:
+    except (DatasetError, NoiseEstimateError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except UsageError as exc:

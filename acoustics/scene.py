@@ -20,7 +20,7 @@ import numpy as np
 from pydantic import (BeforeValidator, Discriminator, Field, PlainSerializer, PrivateAttr, Tag,
                       model_validator)
 
-from processing.config import (AngleDeg, ConfigError, ConfigModel, ConfigWarning, Count,
+from processing.config import (AngleDeg, AngleRangeDeg, ConfigError, ConfigModel, ConfigWarning, Count,
                                NonNegativeReal, PositiveCount, PositiveReal, Real, Vec3,
                                dump_yaml, read_yaml, validate_file)
 from processing.settings import ProcessingSettings
@@ -40,28 +40,6 @@ class SceneError(ConfigError):
 
 class SceneWarning(ConfigWarning):
     """Legal but surprising physics in a scene (grating lobes, blind zone, ...)."""
-
-
-def AngleRangeDeg(lo: float, hi: float):
-    """[low, high] pair of angles in degrees in files, radians inside; low < high."""
-    one = AngleDeg(lo, hi)
-
-    def to_rad(v):
-        if not isinstance(v, (list, tuple)) or len(v) != 2:
-            raise ValueError("must be a list [low, high] of two angles in degrees")
-        from pydantic import TypeAdapter
-        ta = TypeAdapter(one)
-        a, b = ta.validate_python(v[0]), ta.validate_python(v[1])
-        if not a < b:
-            raise ValueError("must be [low, high] with low < high")
-        return (a, b)
-
-    def to_deg(v):
-        return [float(f"{math.degrees(x):.12g}") for x in v]
-
-    return Annotated[tuple[float, float], BeforeValidator(to_rad),
-                     PlainSerializer(to_deg, return_type=list),
-                     Field(json_schema_extra={"description_unit": "degrees"})]
 
 
 def _is_num(v) -> bool:

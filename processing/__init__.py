@@ -9,8 +9,11 @@ recorded data; it never imports acoustics. Public surface::
 """
 from .config import ConfigError
 from .dataset import DatasetError, open_tree, read_record, write_tree
-from .products import image, images_of, resolve_settings
+from .products import (count, count_summary, counts_of, format_counts, detect, detections_of, image, images_of,
+                       resolve_settings, volume_of, write_csv)
+from .noise import NoiseEstimateError
 from .settings import ImageSettings, ProcessingSettings, load_settings
 
-__all__ = ["image", "images_of", "resolve_settings", "open_tree", "write_tree", "read_record",
+__all__ = ["image", "detect", "count", "count_summary", "format_counts", "images_of", "detections_of", "counts_of", "volume_of",
+           "write_csv", "NoiseEstimateError", "resolve_settings", "open_tree", "write_tree", "read_record",
            "DatasetError", "ConfigError", "ProcessingSettings", "ImageSettings", "load_settings"]

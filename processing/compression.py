@@ -55,6 +55,8 @@ class RangeFilter:
     nfft: int
     band_mask: np.ndarray
     rate_hz: float
+    response: np.ndarray | None = None
+    """|U(f)|² W(f) / G: the spectrum of the compressed pulse (the range point response)."""
 
     @classmethod
     def design(cls, replica, *, n_samples: int, rate_hz: float, bandwidth_hz: float,
@@ -77,7 +79,7 @@ class RangeFilter:
         g = np.mean(np.abs(u) ** 2 * w)
         if not g > 0:
             raise ValueError("the range window removes the whole pulse band")
-        return cls(h / g, nfft, band, float(rate_hz))
+        return cls(h / g, nfft, band, float(rate_hz), np.abs(u) ** 2 * w / g)
 
     def noise_power_gain(self, noise_band_hz: float | None = None) -> float:
         """Output/input noise power for white noise confined to ``noise_band_hz`` (two-sided,

@@ -22,11 +22,11 @@ from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
 import yaml
-from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, PlainSerializer,
+from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, PlainSerializer, TypeAdapter,
                       ValidationError)
 
 __all__ = ["ConfigError", "ConfigWarning", "ConfigModel", "Real", "PositiveReal",
-           "NonNegativeReal", "Count", "PositiveCount", "Vec3", "AngleDeg", "read_yaml",
+           "NonNegativeReal", "Count", "PositiveCount", "Vec3", "AngleDeg", "AngleRangeDeg", "read_yaml",
            "validate_file", "format_key_path", "dump_yaml"]
 
 
@@ -99,6 +99,27 @@ def AngleDeg(lo: float | None = None, hi: float | None = None, *, lo_open: bool 
         schema["exclusiveMaximum" if hi_open else "maximum"] = hi
     return Annotated[float, BeforeValidator(to_rad), PlainSerializer(to_deg, return_type=float),
                      Field(json_schema_extra=schema)]
+
+
+def AngleRangeDeg(lo: float, hi: float):
+    """[low, high] pair of angles in degrees in files, radians inside; low < high."""
+    one = AngleDeg(lo, hi)
+
+    def to_rad(v):
+        if not isinstance(v, (list, tuple)) or len(v) != 2:
+            raise ValueError("must be a list [low, high] of two angles in degrees")
+        ta = TypeAdapter(one)
+        a, b = ta.validate_python(v[0]), ta.validate_python(v[1])
+        if not a < b:
+            raise ValueError("must be [low, high] with low < high")
+        return (a, b)
+
+    def to_deg(v):
+        return [float(f"{math.degrees(x):.12g}") for x in v]
+
+    return Annotated[tuple[float, float], BeforeValidator(to_rad),
+                     PlainSerializer(to_deg, return_type=list),
+                     Field(json_schema_extra={"description_unit": "degrees"})]
 
 
 class ConfigModel(BaseModel):

@@ -62,6 +62,39 @@ class Images:
     noise_power_gain: float
     settings: ImageSettings
     phase_centers_m: dict = field(default_factory=dict)
+    range_resolution_m: float = 0.0
+    azimuth_resolution_rad: float = 0.0
+
+
+def _width_3db(profile, step):
+    p = profile / profile.max()
+    i = int(np.argmax(p))
+    above = p >= 0.5 ** 0.5
+    lo, hi = i, i
+    while lo > 0 and above[lo - 1]:
+        lo -= 1
+    while hi < p.size - 1 and above[hi + 1]:
+        hi += 1
+    return (hi - lo + 1) * step
+
+
+def resolution(rfilter: RangeFilter, geometry: SubarrayGeometry, sound_speed_m_s: float,
+               wavelength_m: float):
+    """3 dB widths of the point response: range (m, from the compressed pulse) and azimuth (rad,
+    from the weighted array factor at broadside). Used as the resolution cell for scoring."""
+    spec = rfilter.response
+    n, up = rfilter.nfft, 32
+    big = np.zeros(n * up)
+    h = n // 2
+    big[:h], big[n * up - (n - h):] = spec[:h], spec[h:]
+    pulse = np.fft.fftshift(np.abs(np.fft.ifft(big)))
+    dt = 1.0 / (rfilter.rate_hz * up)
+    dr = _width_3db(pulse, dt) * sound_speed_m_s / 2
+    u = np.linspace(-0.5, 0.5, 20001)
+    x = geometry.positions_m[:, 0] - geometry.center_m[0]
+    af = np.abs(np.exp(2j * np.pi / wavelength_m * np.outer(u, x)) @ geometry.weights)
+    dtheta = _width_3db(af, u[1] - u[0])
+    return float(dr), float(dtheta)
 
 
 def range_axis(record: SonarRecord, upsample: int):
@@ -143,5 +176,6 @@ def form_images(record: SonarRecord, settings: ImageSettings | None = None, *,
         baseline = centers["B"] - centers["A"]
         elev, clipped = elevation_from_phase(psi, angles, baseline, lam)
     gain = rf.noise_power_gain(noise_band_hz) * first.noise_power_gain()
+    dr, dth = resolution(rf, first, record.sound_speed_m_s, lam)
     return Images(out, names, r[rows], t[rows], angles, psi, elev, clipped, baseline, gain, st,
-                  centers)
+                  centers, dr, dth)

@@ -164,3 +164,82 @@ def image_figures(images: dict, outdir: Path, *, ping: int = 0) -> list[Path]:
         paths.append(save(fig, outdir / "phase.png"))
         plt.close(fig)
     return paths
+
+
+def count_figures(tree, outdir: Path, *, pings=(0,), max_pings: int = 5) -> list[Path]:
+    """detections_ping<k>.png (fan-beam image with detections, thesis Appendix B; and the 3-D
+    positions seen from above and from the side) and counts.png (counts and errors vs ping)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .products import counts_of, detections_of, images_of
+
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    im = images_of(tree)
+    det = detections_of(tree)
+    cnt = counts_of(tree)
+    r, th = im["range_m"], im["beam_angle_rad"]
+    paths = []
+    truth = None
+    if "Simulation" in tree.children and "Ground_truth" in tree["Simulation"].children:
+        gt = tree["Simulation/Ground_truth"].ds
+        truth = (gt["target_ping_index"].values, np.stack([gt[f"target_{a}"].values for a in "xyz"], -1))
+    g = 0
+    for p in list(pings)[:max_pings]:
+        k = det["ping"] == p
+        fig, axes = plt.subplots(1, 3, figsize=(16, 6), constrained_layout=True)
+        xs = det["range_m"][k] * np.sin(det["azimuth_rad"][k])
+        zs = det["range_m"][k] * np.cos(det["azimuth_rad"][k])
+        plot_fan(axes[0], np.abs(im["image"][p, g]), r, th,
+                 title=f"ping {int(cnt['ping_index'][p])}: {int(k.sum())} detections",
+                 detections=(xs, zs))
+        inside = det["in_volume"][k]
+        for ax, (i, j, lab) in zip(axes[1:], ((0, 2, "x (m)"), (1, 2, "y (m)"))):
+            pos = np.stack([det["x_m"][k], det["y_m"][k], det["z_m"][k]], -1)
+            if truth is not None:
+                tp = truth[1][truth[0] == cnt["ping_index"][p]]
+                ax.plot(tp[:, i], tp[:, j], ".", color="0.6", ms=4, label="true targets")
+            ax.plot(pos[~inside, i], pos[~inside, j], "x", color="tab:orange", label="located, outside volume")
+            ax.plot(pos[inside, i], pos[inside, j], "o", mfc="none", mec="tab:green", ms=8,
+                    label="located, inside volume")
+            ax.set_xlabel(f"sonar {lab}")
+            ax.set_ylabel("sonar z (m)")
+            ax.grid(alpha=0.3)
+        az_h = float(tree["Processing/Detections"].ds.attrs["counting_azimuth_halfwidth_rad"])
+        el_h = float(tree["Processing/Detections"].ds.attrs["counting_elevation_halfwidth_rad"])
+        r0, r1 = tree["Processing/Detections"].ds.attrs["counting_range_m"]
+        for ax, hw in ((axes[1], az_h), (axes[2], el_h)):
+            rr = np.array([r0, r1])
+            for s in (-1, 1):
+                ax.plot(s * rr * np.sin(hw), rr * np.cos(hw), "k-", lw=0.8)
+        axes[1].set_title("seen from above (x–z): counting volume in azimuth")
+        axes[2].set_title("seen from the side (y–z): counting volume in elevation")
+        axes[2].set_xlim(-1.5, 1.5)
+        axes[1].legend(fontsize=8, loc="lower left")
+        paths.append(save(fig, outdir / f"detections_ping{int(cnt['ping_index'][p])}.png"))
+        plt.close(fig)
+    fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True, constrained_layout=True)
+    x = cnt["ping_index"]
+    if "true_in_volume" in cnt:
+        axes[0].plot(x, cnt["true_in_volume"], "k-", lw=1.2, label="true, in volume")
+    axes[0].plot(x, cnt["count_before"], "-", color="tab:orange", label="detected in span (before interferometry)")
+    axes[0].plot(x, cnt["count_after"], "-", color="tab:green", label="counted in volume (after)")
+    axes[0].set_ylabel("targets per ping")
+    axes[0].legend(fontsize=8)
+    axes[0].grid(alpha=0.3)
+    if "error_before" in cnt:
+        axes[1].plot(x, cnt["error_before"], "-", color="tab:orange", label="before interferometry")
+        axes[1].plot(x, cnt["error_after"], "-", color="tab:green", label="after interferometry")
+        axes[1].axhline(0, color="k", lw=0.8)
+        axes[1].set_ylabel("count error (counted − true)")
+        axes[1].legend(fontsize=8)
+    else:
+        axes[1].plot(x, cnt["density_per_m3"], "-", color="tab:green")
+        axes[1].set_ylabel("density (m⁻³)")
+    axes[1].set_xlabel("ping index")
+    axes[1].grid(alpha=0.3)
+    paths.append(save(fig, outdir / "counts.png"))
+    plt.close(fig)
+    return paths

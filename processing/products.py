@@ -20,9 +20,12 @@ from .dataset import ELEMENT_GROUP, DatasetError, read_record, split_complex
 from .imaging import Images, form_images
 from .settings import ImageSettings, ProcessingSettings, load_settings
 
-__all__ = ["PROCESSING_GROUP", "resolve_settings", "image", "images_of"]
+__all__ = ["PROCESSING_GROUP", "resolve_settings", "image", "images_of", "detect", "count",
+           "volume_of", "detections_of", "counts_of", "write_csv", "count_summary", "format_counts"]
 
 PROCESSING_GROUP = "Processing"
+DETECTIONS_GROUP = "Processing/Detections"
+COUNTS_GROUP = "Processing/Counts"
 
 
 def resolve_settings(tree: xr.DataTree | None, settings=None) -> ProcessingSettings:
@@ -72,6 +75,9 @@ def images_dataset(im: Images, ping_time, settings: ProcessingSettings) -> xr.Da
                 "beam_angle": ("beam", im.beam_angle_rad, {"units": "rad", "long_name": "azimuth θ of the beam axis"})},
         attrs={"settings_yaml": dump_yaml(settings.model_dump(mode="json", by_alias=True)),
                "image_noise_power_gain": im.noise_power_gain, "image_signal_gain": 1.0,
+               "range_resolution_m": im.range_resolution_m,
+               "azimuth_resolution_rad": im.azimuth_resolution_rad,
+               "interpolation": int(settings.image.interpolation),
                "phase_centers_json": json.dumps({g: list(map(float, c)) for g, c in im.phase_centers_m.items()})})
     if im.psi_rad is not None:
         d3 = ("ping_time", "image_range", "beam")
@@ -125,7 +131,276 @@ def images_of(tree: xr.DataTree) -> dict:
            "groups": [str(g) for g in ds["image_group"].values],
            "range_m": ds["image_range"].values, "time_s": ds["image_time"].values,
            "beam_angle_rad": ds["beam_angle"].values,
-           "noise_power_gain": float(ds.attrs.get("image_noise_power_gain", 1.0))}
+           "noise_power_gain": float(ds.attrs.get("image_noise_power_gain", 1.0)),
+           "range_resolution_m": float(ds.attrs.get("range_resolution_m", 0.0)),
+           "azimuth_resolution_rad": float(ds.attrs.get("azimuth_resolution_rad", 0.0)),
+           "interpolation": int(ds.attrs.get("interpolation", 1)),
+           "phase_centers": {k: np.asarray(v) for k, v in
+                             json.loads(ds.attrs.get("phase_centers_json", "{}")).items()}}
     for k in ("interferometric_phase", "elevation", "elevation_clipped", "baseline"):
         out[k] = ds[k].values if k in ds else None
     return out
+
+
+# ---------------------------------------------------------------- detect, count
+def volume_of(tree: xr.DataTree, settings: ProcessingSettings):
+    """The counting volume of a dataset: transmitter 3 dB beam (from /Sonar) x image range."""
+    from .counting import counting_volume
+    sonar = tree["Sonar"].ds if "Sonar" in tree.children else xr.Dataset()
+    cs = settings.count
+    need = []
+    for key, override in (("beamwidth_transmit_major", cs.azimuth_halfwidth),
+                          ("beamwidth_transmit_minor", cs.elevation_halfwidth)):
+        if key not in sonar and override is None:
+            need.append(key)
+    if need:
+        raise DatasetError(f"the counting volume needs /Sonar/{' and /Sonar/'.join(need)} (transmit "
+                           f"3 dB beamwidths, degrees) or count.azimuth_halfwidth_deg / "
+                           f"count.elevation_halfwidth_deg in the settings")
+    bw_az = np.radians(float(sonar["beamwidth_transmit_major"])) if "beamwidth_transmit_major" in sonar else 1.0
+    bw_el = np.radians(float(sonar["beamwidth_transmit_minor"])) if "beamwidth_transmit_minor" in sonar else 1.0
+    r = tree[PROCESSING_GROUP].ds["image_range"].values
+    rng = settings.image.range_m if settings.image.range_m is not None else (float(r[0]), float(r[-1]))
+    return counting_volume(tx_beamwidth_az_rad=bw_az, tx_beamwidth_el_rad=bw_el,
+                           image_range_m=rng, settings=cs)
+
+
+def _pose(tree):
+    if "Platform" in tree.children and "sonar_rotation" in tree["Platform"].ds:
+        ds = tree["Platform"].ds
+        return ds["sonar_position"].values.astype(float), ds["sonar_rotation"].values.astype(float)
+    return None
+
+
+def detect(tree: xr.DataTree, settings=None) -> xr.DataTree:
+    """Detections with 3-D positions (thesis chapter 5); runs :func:`image` first if needed.
+
+    Returns
+    -------
+    xarray.DataTree
+        A copy with /Processing/Detections: one row per detection (dim ``detection``).
+
+    Raises
+    ------
+    processing.noise.NoiseEstimateError
+        A noise-derived threshold on noise-free images.
+    processing.dataset.DatasetError
+        Missing pieces of the dataset, named.
+    """
+    from .detection import detect_all
+    from .noise import NoiseEstimateError
+    st = resolve_settings(tree, settings)
+    if PROCESSING_GROUP not in tree.children:
+        tree = image(tree, st)
+    images = images_of(tree)
+    rec = read_record(tree, source=str(tree.attrs.get("title", "dataset")))
+    volume = volume_of(tree, st)
+    noise_mags = None
+    if st.detect.noise.source == "noise_file":
+        from .dataset import open_tree
+        noise_tree = image(open_tree(st.detect.noise.file), st)
+        ni = images_of(noise_tree)
+        g = ni["groups"].index(st.detect.image_group) if st.detect.image_group in ni["groups"] else 0
+        noise_mags = np.abs(ni["image"][:, g])
+    try:
+        det = detect_all(images, rec, st.detect, volume, upsample=images["interpolation"],
+                         pose=_pose(tree), noise_magnitudes=noise_mags)
+    except ValueError as exc:
+        if isinstance(exc, NoiseEstimateError):
+            raise
+        raise DatasetError(str(exc)) from None
+    t = det.table
+    units = {"range_m": "m", "azimuth_rad": "rad", "elevation_rad": "rad", "psi_rad": "rad",
+             "x_m": "m", "y_m": "m", "z_m": "m", "world_x_m": "m", "world_y_m": "m",
+             "world_z_m": "m", "amplitude": "ADC counts", "threshold": "ADC counts", "snr_db": "dB"}
+    data = {}
+    for k, v in t.items():
+        v = np.asarray(v)
+        if v.dtype == bool:
+            v = v.astype(np.int8)
+        data[k] = xr.DataArray(v, dims="detection", attrs={"units": units[k]} if k in units else {})
+    ds = xr.Dataset(data, attrs={
+        "method": st.detect.method, "convention": st.detect.convention,
+        "image_group": st.detect.image_group, "n_cells_tested": det.n_cells,
+        "pfa_image": st.detect.pfa_image, "pfa_cell": det.pfa_cell if det.pfa_cell is not None else -1.0,
+        "noise_sigma": det.noise.sigma if det.noise else -1.0,
+        "noise_mu": det.noise.mu if det.noise else -1.0,
+        "noise_fit": det.noise.describe() if det.noise else "none (no noise estimate was needed)",
+        "notes": "; ".join(det.notes),
+        "snr_db_note": "20 log10(amplitude / noise sigma); NaN where no noise level was estimated",
+        "counting_volume_m3": volume.volume_m3, "counting_range_m": list(volume.range_m),
+        "counting_azimuth_halfwidth_rad": volume.azimuth_halfwidth_rad,
+        "counting_elevation_halfwidth_rad": volume.elevation_halfwidth_rad})
+    ds["threshold_per_ping"] = xr.DataArray(det.threshold_per_ping, dims="ping_time",
+                                            attrs={"units": "ADC counts"})
+    out = tree.copy()
+    out[DETECTIONS_GROUP] = xr.DataTree(ds)
+    return out
+
+
+def detections_of(tree: xr.DataTree) -> dict:
+    """The detections table as numpy arrays (booleans restored)."""
+    if PROCESSING_GROUP not in tree.children or "Detections" not in tree[PROCESSING_GROUP].children:
+        raise DatasetError("the dataset has no /Processing/Detections: run processing.detect first")
+    ds = tree[DETECTIONS_GROUP].ds
+    out = {k: ds[k].values for k in ds.data_vars if "detection" in ds[k].dims}
+    for k in ("in_span", "in_volume", "elevation_clipped"):
+        if k in out:
+            out[k] = out[k].astype(bool)
+    return out
+
+
+def _truth(tree, ping_index):
+    from .dataset import TRUTH_GROUP
+    try:
+        gt = tree[TRUTH_GROUP].ds
+    except KeyError:
+        return None
+    index_of = {int(p): i for i, p in enumerate(ping_index)}
+    pings = gt["target_ping_index"].values.astype(int)
+    keep = np.array([p in index_of for p in pings], bool)
+    pos = np.stack([gt[f"target_{a}"].values for a in "xyz"], -1)[keep]
+    return {"ping": np.array([index_of[p] for p in pings[keep]], int), "position_m": pos}
+
+
+def count(tree: xr.DataTree, settings=None) -> xr.DataTree:
+    """Counts and density per ping, and scores against the truth when the dataset has it;
+    runs :func:`detect` first if needed.
+
+    Returns
+    -------
+    xarray.DataTree
+        A copy with /Processing/Counts (dim ``ping_time``): count_before, count_after,
+        density_per_m3 and, with ground truth, true_in_volume, error_before, error_after,
+        hits/misses/false alarms before and after interferometry, shared_cell_misses.
+    """
+    from .detection import score_all
+    st = resolve_settings(tree, settings)
+    if (PROCESSING_GROUP not in tree.children or "Detections" not in tree[PROCESSING_GROUP].children):
+        tree = detect(tree, st)
+    table = detections_of(tree)
+    volume = volume_of(tree, st)
+    eg = tree[ELEMENT_GROUP].ds
+    ping_index = eg["ping_index"].values if "ping_index" in eg.variables else np.arange(eg.sizes["ping_time"])
+    pds = tree[PROCESSING_GROUP].ds
+    res = score_all(table, _truth(tree, ping_index), volume, len(ping_index),
+                    dr=float(pds.attrs["range_resolution_m"]),
+                    dtheta=float(pds.attrs["azimuth_resolution_rad"]), gate=st.count.gate_cells,
+                    unresolved=st.count.unresolved_cells)
+    ds = xr.Dataset({k: xr.DataArray(v, dims="ping_time") for k, v in res.items()},
+                    coords={"ping_time": eg["ping_time"].values,
+                            "ping_index": ("ping_time", np.asarray(ping_index))},
+                    attrs={"counting_volume_m3": volume.volume_m3, "gate_cells": st.count.gate_cells,
+                           "has_truth": int("true_in_volume" in res)})
+    ds["density_per_m3"].attrs["units"] = "m^-3"
+    out = tree.copy()
+    out[COUNTS_GROUP] = xr.DataTree(ds)
+    return out
+
+
+def counts_of(tree: xr.DataTree) -> dict:
+    if PROCESSING_GROUP not in tree.children or "Counts" not in tree[PROCESSING_GROUP].children:
+        raise DatasetError("the dataset has no /Processing/Counts: run processing.count first")
+    ds = tree[COUNTS_GROUP].ds
+    out = {k: ds[k].values for k in ds.data_vars}
+    out["ping_index"] = ds["ping_index"].values
+    out["volume_m3"] = float(ds.attrs["counting_volume_m3"])
+    return out
+
+
+def write_csv(tree: xr.DataTree, path) -> Path:
+    """Write the detections table as CSV (atomically)."""
+    import csv
+    table = detections_of(tree)
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
+    keys = list(table)
+    with open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(keys)
+        for i in range(len(table[keys[0]]) if keys else 0):
+            w.writerow([_fmt(table[k][i]) for k in keys])
+    tmp.replace(path)
+    return path
+
+
+def _fmt(v):
+    if isinstance(v, (bool, np.bool_)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return f"{float(v):.9g}"
+    return v
+
+
+def count_summary(tree: xr.DataTree) -> dict:
+    """Per-ping counts and the run's summary as plain Python (what ``abacus count --json``
+    prints): means and standard deviations of counts, errors and density."""
+    c = counts_of(tree)
+    n = len(c["ping_index"])
+    per = []
+    for i in range(n):
+        row = {"ping_index": int(c["ping_index"][i])}
+        for k, v in c.items():
+            if k in ("ping_index", "volume_m3"):
+                continue
+            row[k] = float(v[i]) if k.endswith("per_m3") else int(v[i])
+        per.append(row)
+
+    def stats(key):
+        v = np.asarray(c[key], float)
+        return {"mean": float(v.mean()) if n else 0.0, "std": float(v.std()) if n else 0.0}
+
+    summary = {"pings": n, "counting_volume_m3": c["volume_m3"]}
+    for key in ("count_before", "count_after", "density_per_m3", "true_in_volume",
+                "true_density_per_m3", "error_before", "error_after"):
+        if key in c:
+            summary[key] = stats(key)
+    if "error_after" in c:
+        summary["mean_abs_error_before"] = float(np.mean(np.abs(c["error_before"]))) if n else 0.0
+        summary["mean_abs_error_after"] = float(np.mean(np.abs(c["error_after"]))) if n else 0.0
+        for k in ("hits_after", "misses_after", "false_alarms_after", "shared_cell_misses",
+                  "hits_before", "misses_before", "false_alarms_before"):
+            summary[f"total_{k}"] = int(np.sum(c[k]))
+    det = tree[DETECTIONS_GROUP].ds.attrs
+    summary["detection"] = {"method": det["method"], "convention": det["convention"],
+                            "n_cells_tested": int(det["n_cells_tested"]),
+                            "pfa_cell": float(det["pfa_cell"]), "noise": det["noise_fit"],
+                            "threshold_median": float(np.median(tree[DETECTIONS_GROUP].ds["threshold_per_ping"].values))
+                            if n else 0.0}
+    return {"pings": per, "summary": summary}
+
+
+def format_counts(result: dict) -> str:
+    """Fixed-width per-ping table and summary of :func:`count_summary`."""
+    per, s = result["pings"], result["summary"]
+    truth = "error_after" in s
+    head = f"{'ping':>5} {'before':>7} {'after':>6} {'density':>9}"
+    if truth:
+        head += f" {'true':>5} {'err_bef':>8} {'err_aft':>8} {'hits':>5} {'miss':>5} {'FA':>4}"
+    lines = [head]
+    for r in per:
+        line = (f"{r['ping_index']:>5} {r['count_before']:>7} {r['count_after']:>6} "
+                f"{r['density_per_m3']:>9.4f}")
+        if truth:
+            line += (f" {r['true_in_volume']:>5} {r['error_before']:>+8d} {r['error_after']:>+8d} "
+                     f"{r['hits_after']:>5} {r['misses_after']:>5} {r['false_alarms_after']:>4}")
+        lines.append(line)
+    d = s["detection"]
+    lines.append("")
+    lines.append(f"{s['pings']} ping(s); counting volume {s['counting_volume_m3']:.2f} m³; threshold: "
+                 f"{d['method']} ({d['convention']}), median {d['threshold_median']:.4g} counts, "
+                 f"{d['n_cells_tested']} cells tested, P_fa,cell {d['pfa_cell']:.3g}")
+    lines.append(f"noise: {d['noise']}")
+    lines.append(f"counted per ping: {s['count_after']['mean']:.2f} ± {s['count_after']['std']:.2f} "
+                 f"inside the volume (density {s['density_per_m3']['mean']:.4f} ± "
+                 f"{s['density_per_m3']['std']:.4f} m⁻³); {s['count_before']['mean']:.2f} in the span")
+    if truth:
+        lines.append(f"truth per ping: {s['true_in_volume']['mean']:.2f} in the volume (density "
+                     f"{s['true_density_per_m3']['mean']:.4f} m⁻³)")
+        lines.append(f"count error before interferometry: {s['error_before']['mean']:+.2f} ± "
+                     f"{s['error_before']['std']:.2f}; after: {s['error_after']['mean']:+.2f} ± "
+                     f"{s['error_after']['std']:.2f} (mean |error| {s['mean_abs_error_after']:.2f})")
+        lines.append(f"after interferometry: {s['total_hits_after']} hits, {s['total_misses_after']} "
+                     f"misses ({s['total_shared_cell_misses']} sharing a resolution cell with another "
+                     f"target), {s['total_false_alarms_after']} false alarms")
+    return "\n".join(lines)

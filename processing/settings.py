@@ -10,10 +10,11 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from .config import (AngleDeg, ConfigModel, PositiveCount, PositiveReal, read_yaml,
-                     validate_file)
+from .config import (AngleDeg, AngleRangeDeg, ConfigModel, Count, NonNegativeReal, PositiveCount, PositiveReal,
+                     Real, read_yaml, validate_file)
 
-__all__ = ["ImageSettings", "ProcessingSettings", "load_settings", "WINDOWS"]
+__all__ = ["ImageSettings", "NoiseSettings", "CfarSettings", "DetectSettings", "CountSettings",
+           "ProcessingSettings", "load_settings", "WINDOWS"]
 
 #: windows accepted by name (scipy.signal.windows), range and spatial
 WINDOWS = ("rectangular", "hamming", "hann", "taylor", "blackman")
@@ -45,10 +46,97 @@ class ImageSettings(ConfigModel):
         return self
 
 
+class NoiseSettings(ConfigModel):
+    """Where the Rayleigh noise level comes from (thesis §5.2.3)."""
+
+    source: Literal["image", "region", "noise_file"] = "image"
+    """image: a robust (median) estimate from the images themselves; region: the cells in
+    ``range_m`` x ``azimuth_deg``; noise_file: a noise-only dataset processed the same way."""
+    estimator: Literal["median", "ml"] = "median"
+    """median: σ = median/√(2 ln 2), robust to sparse targets; ml: maximum likelihood
+    σ² = Σx²/2n (exact for pure noise, biased by targets)."""
+    per_ping: bool = False
+    """Estimate per ping (noise varying with ping) or pooled over all pings (the thesis)."""
+    range_m: tuple[PositiveReal, PositiveReal] | None = None
+    """Region (source: region)."""
+    azimuth: AngleRangeDeg(-90, 90) | None = Field(None, alias="azimuth_deg")
+    """Region (source: region)."""
+    file: str | None = None
+    """Noise-only dataset (source: noise_file), relative to the working directory."""
+
+    @model_validator(mode="after")
+    def _region(self):
+        if self.source == "region" and self.range_m is None:
+            raise ValueError("source 'region' needs range_m (and optionally azimuth_deg)")
+        if self.source == "noise_file" and not self.file:
+            raise ValueError("source 'noise_file' needs file")
+        return self
+
+
+class CfarSettings(ConfigModel):
+    """2-D CFAR on |I|² with guard and training cells around each cell under test."""
+
+    kind: Literal["ca", "os"] = "ca"
+    """ca: cell averaging; os: ordered statistic (robust to targets in the training cells)."""
+    guard: tuple[Count, Count] = (8, 1)
+    """Guard cells each side (range samples of the interpolated image, beams)."""
+    training: tuple[PositiveCount, PositiveCount] = (24, 3)
+    """Training cells each side beyond the guard cells (range samples, beams)."""
+    rank: Real = Field(0.75, gt=0, lt=1)
+    """OS-CFAR: the order statistic as a fraction of the training cells."""
+
+
+class DetectSettings(ConfigModel):
+    """Thresholds and peaks (thesis chapter 5)."""
+
+    method: Literal["rayleigh", "fixed", "fraction_of_peak", "cfar"] = "rayleigh"
+    """rayleigh: T from the noise level and a false-alarm probability; fixed: T = value;
+    fraction_of_peak: T = fraction x the brightest cell of each ping (thesis §6.3); cfar."""
+    pfa_image: Real = Field(1e-7, gt=0, lt=1)
+    """Probability of any false alarm in the tested cells of one image (thesis: <= 1e-7)."""
+    convention: Literal["correct", "thesis"] = "correct"
+    """correct: P_cell = 1 − (1 − α)^(1/N) and T = σ√(−2 ln P_cell); thesis: eq. 5.4 and 5.9 as
+    printed, P_cell = 1 − α^(1/N) and T = √(−2 μ² (π/2) ln P_cell) (reproduces 9.05e-4, ~656)."""
+    value: NonNegativeReal | None = None
+    """Fixed threshold (image units, ADC counts) for method: fixed."""
+    fraction: Real = Field(0.15, gt=0, lt=1)
+    """For method: fraction_of_peak (0.15 in §6.3, 0.10 in §6.3.3)."""
+    noise: NoiseSettings = NoiseSettings()
+    cfar: CfarSettings = CfarSettings()
+    image_group: str = "A"
+    """Image to detect on (A, as the thesis; B; or AB in combined mode)."""
+
+    @model_validator(mode="after")
+    def _fixed(self):
+        if self.method == "fixed" and self.value is None:
+            raise ValueError("method 'fixed' needs value (a threshold in ADC counts)")
+        return self
+
+
+class CountSettings(ConfigModel):
+    """The counting volume (default: the transmitter's 3 dB beam x the image's range limits)
+    and the matching of detections to the ground truth."""
+
+    azimuth_halfwidth: AngleDeg(0, 90, lo_open=True) | None = Field(None, alias="azimuth_halfwidth_deg")
+    """Default: half the transmitter's 3 dB azimuth width (5.14° for ABACUS)."""
+    elevation_halfwidth: AngleDeg(0, 90, lo_open=True) | None = Field(None, alias="elevation_halfwidth_deg")
+    """Default: half the transmitter's 3 dB elevation width (0.43°)."""
+    range_m: tuple[PositiveReal, PositiveReal] | None = None
+    """Default: the image's range limits."""
+    gate_cells: PositiveReal = 1.0
+    """Matching gate in resolution cells (range 3 dB width, azimuth 3 dB width)."""
+    unresolved_cells: PositiveReal = 1.5
+    """Two true targets closer than this (in resolution cells) count as sharing a resolution
+    cell when one is missed: the Rayleigh limit of a Hamming-weighted aperture is ~1.4 of its
+    3 dB width."""
+
+
 class ProcessingSettings(ConfigModel):
     """All processing settings."""
 
     image: ImageSettings = ImageSettings()
+    detect: DetectSettings = DetectSettings()
+    count: CountSettings = CountSettings()
 
 
 def load_settings(path: str | Path) -> ProcessingSettings:

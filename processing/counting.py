@@ -1,0 +1,72 @@
+"""The counting volume, counts and density (thesis §5.3.1, §6.2; Table 6.3).
+
+The counting volume is a sector of the sonar frame: ranges r1 <= r <= r2 from the origin (the
+transmitter's phase centre), |θ| <= θ_h and |φ| <= φ_h, with θ = atan2(x, z) and
+φ = atan2(y, √(x² + z²)) as in docs/conventions.md. By default θ_h and φ_h are half the
+transmitter's 3 dB beamwidths read from the dataset (``/Sonar/beamwidth_transmit_major/minor``)
+and [r1, r2] the image's range limits. Its volume is exact:
+
+    V = (r2³ − r1³)/3 · 2θ_h · 2 sin φ_h          (13.8 m³ for ABACUS at 13–26 m)
+
+Counts per ping: *before interferometry* every detection whose range and azimuth fall in the
+volume's span (elevation unknown); *after* only those whose 3-D position lies inside. Density =
+count / V.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["CountingVolume", "counting_volume"]
+
+
+@dataclass(frozen=True)
+class CountingVolume:
+    """A sonar-frame sector.
+
+    Attributes
+    ----------
+    range_m : (float, float)
+    azimuth_halfwidth_rad, elevation_halfwidth_rad : float
+    """
+
+    range_m: tuple
+    azimuth_halfwidth_rad: float
+    elevation_halfwidth_rad: float
+
+    @property
+    def volume_m3(self) -> float:
+        r1, r2 = self.range_m
+        return float((r2**3 - r1**3) / 3 * 2 * self.azimuth_halfwidth_rad
+                     * 2 * np.sin(self.elevation_halfwidth_rad))
+
+    def in_span(self, range_m, azimuth_rad):
+        """Range and azimuth inside (elevation ignored), shape of the inputs."""
+        r = np.asarray(range_m, float)
+        return ((r >= self.range_m[0]) & (r <= self.range_m[1])
+                & (np.abs(np.asarray(azimuth_rad, float)) <= self.azimuth_halfwidth_rad))
+
+    def contains(self, positions_m):
+        """Sonar-frame positions (n, 3) inside the sector, shape (n,)."""
+        p = np.asarray(positions_m, float).reshape(-1, 3)
+        r = np.linalg.norm(p, axis=1)
+        az = np.arctan2(p[:, 0], p[:, 2])
+        el = np.arctan2(p[:, 1], np.hypot(p[:, 0], p[:, 2]))
+        return self.in_span(r, az) & (np.abs(el) <= self.elevation_halfwidth_rad)
+
+
+def counting_volume(*, tx_beamwidth_az_rad: float, tx_beamwidth_el_rad: float, image_range_m,
+                    settings=None) -> CountingVolume:
+    """The counting volume from the transmitter's beamwidths and the image range, with any
+    overrides of ``settings`` (a :class:`~processing.settings.CountSettings`)."""
+    az = tx_beamwidth_az_rad / 2
+    el = tx_beamwidth_el_rad / 2
+    rng = tuple(float(r) for r in image_range_m)
+    if settings is not None:
+        az = settings.azimuth_halfwidth if settings.azimuth_halfwidth is not None else az
+        el = settings.elevation_halfwidth if settings.elevation_halfwidth is not None else el
+        rng = tuple(settings.range_m) if settings.range_m is not None else rng
+    if not (np.isfinite(az) and az > 0 and np.isfinite(el) and el > 0):
+        raise ValueError("the counting volume needs positive azimuth and elevation half-widths")
+    return CountingVolume(rng, float(az), float(el))

@@ -1,0 +1,270 @@
+"""Detection, 3-D location and counting of every ping (thesis chapter 5 and §6.2–6.3).
+
+For each ping, on one image (subarray A by default):
+
+1. threshold — from the Rayleigh noise level and a false-alarm probability per image (default),
+   a fixed value, a fraction of the ping's brightest cell, or a 2-D CFAR;
+2. peaks — local maxima of |I| above the threshold, refined between cells;
+3. elevation — from ψ_AB at the peak with the refined azimuth;
+4. 3-D position — the thesis' system (processing.locate), in the sonar and world frames;
+5. counting — detections in the counting volume's range–azimuth span (before interferometry) and
+   inside the volume (after); density = count / volume;
+6. scoring — when the dataset has ground truth, matches, misses, false alarms and count errors.
+
+Everything tested with numbers: the number of cells N tested per image counts native range samples
+(the image is interpolated U times, which adds no independent cells) times the beams in the span.
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .counting import CountingVolume
+from .interferometry import elevation_from_phase
+from .locate import locate, to_world
+from .noise import NoiseEstimateError, RayleighFit, rayleigh_fit
+from .peaks import local_maxima, refine_peaks
+from .scoring import match
+from .settings import DetectSettings
+from .thresholds import cell_pfa, cfar_threshold, rayleigh_threshold
+
+__all__ = ["DetectionWarning", "Detections", "detect_all", "score_all", "n_tested_cells"]
+
+
+class DetectionWarning(UserWarning):
+    """Detection ran, but something about its inputs deserves a look (e.g. non-Rayleigh noise)."""
+
+
+@dataclass
+class Detections:
+    """The detections table (one entry per detection) and what produced it.
+
+    Attributes
+    ----------
+    table : dict of ndarray, each shape (n_detections,)
+        ping (index in the file), ping_index, row, beam, range_m, azimuth_rad, elevation_rad,
+        elevation_clipped, psi_rad, x_m, y_m, z_m (sonar frame), world_x_m, world_y_m, world_z_m,
+        amplitude (image units), snr_db (NaN where no noise level exists), threshold,
+        in_span (range and azimuth in the counting volume), in_volume (3-D position inside).
+    threshold_per_ping : ndarray, shape (n_pings,)
+        Scalar threshold of each ping (for CFAR: the median over the tested cells).
+    noise : RayleighFit or None
+    pfa_cell : float or None
+    n_cells : int
+    """
+
+    table: dict
+    threshold_per_ping: np.ndarray
+    noise: RayleighFit | None
+    pfa_cell: float | None
+    n_cells: int
+    notes: list = field(default_factory=list)
+
+
+def n_tested_cells(range_m, beam_angle_rad, volume: CountingVolume, upsample: int) -> int:
+    """Independent cells per image in the counting span: native range samples x beams."""
+    rows = int(np.count_nonzero((range_m >= volume.range_m[0]) & (range_m <= volume.range_m[1])))
+    beams = int(np.count_nonzero(np.abs(beam_angle_rad) <= volume.azimuth_halfwidth_rad))
+    return max(1, int(round(rows / max(upsample, 1))) * max(beams, 1))
+
+
+def _noise_fit(mags, st: DetectSettings, range_m, beam_angle_rad, upsample, noise_mags=None):
+    """Rayleigh fit of the cells the settings point at (mags: (n_pings, n_range, n_beams))."""
+    ns = st.noise
+    if ns.source == "noise_file":
+        cells = noise_mags
+    elif ns.source == "region":
+        rows = (range_m >= ns.range_m[0]) & (range_m <= ns.range_m[1])
+        cols = np.ones(beam_angle_rad.size, bool)
+        if ns.azimuth is not None:
+            cols = (beam_angle_rad >= ns.azimuth[0]) & (beam_angle_rad <= ns.azimuth[1])
+        cells = mags[..., rows, :][..., cols]
+    else:
+        cells = mags
+    step_b = 1 if beam_angle_rad.size < 8 else max(1, beam_angle_rad.size // 8)
+    dec = (Ellipsis, slice(None, None, max(upsample, 1)), slice(None, None, step_b))
+    return rayleigh_fit(cells, estimator=ns.estimator, decimate=dec)
+
+
+def detect_all(images: dict, record, settings: DetectSettings, volume: CountingVolume, *,
+               upsample: int, pose=None, noise_magnitudes=None) -> Detections:
+    """Detections of every ping.
+
+    Parameters
+    ----------
+    images : dict
+        From :func:`processing.products.images_of`.
+    record : SonarRecord
+        For the geometry (phase centres, transmitter, sound speed, wavelength).
+    settings : DetectSettings
+    volume : CountingVolume
+    upsample : int
+        The images' range interpolation factor.
+    pose : (position_m (3,), rotation (3, 3)), optional
+        Sonar pose for world coordinates; identity if None.
+    noise_magnitudes : ndarray, optional
+        |I| of a noise-only dataset (settings.noise.source == "noise_file").
+
+    Raises
+    ------
+    NoiseEstimateError
+        A Rayleigh threshold was asked for but the images carry no noise.
+    """
+    st = settings
+    groups = images["groups"]
+    if st.image_group not in groups:
+        raise ValueError(f"detect.image_group {st.image_group!r} is not an image of this dataset "
+                         f"(images: {', '.join(groups)})")
+    g = groups.index(st.image_group)
+    img = images["image"][:, g]
+    mags = np.abs(img)
+    r, th = images["range_m"], images["beam_angle_rad"]
+    n_ping = mags.shape[0]
+    n_cells = n_tested_cells(r, th, volume, upsample)
+    fit = None
+    pfa = None
+    notes = []
+    if st.method in ("rayleigh", "cfar"):
+        pfa = cell_pfa(st.pfa_image, n_cells, convention=st.convention)
+    if st.method == "rayleigh" or (st.method != "rayleigh" and st.noise.source != "image"):
+        try:
+            if not st.noise.per_ping:
+                fit = _noise_fit(mags, st, r, th, upsample, noise_magnitudes)
+        except NoiseEstimateError:
+            if st.method == "rayleigh":
+                raise
+    if fit is not None and not fit.rayleigh_like:
+        msg = (f"the noise cells are not Rayleigh-like ({fit.describe()}): the derived threshold "
+               f"may not hold its false-alarm rate")
+        warnings.warn(msg, DetectionWarning, stacklevel=2)
+        notes.append(msg)
+    cols = {k: [] for k in ("ping", "row", "beam", "threshold")}
+    thr_ping = np.zeros(n_ping)
+    sigmas = np.zeros(n_ping)
+    for p in range(n_ping):
+        m = mags[p]
+        sigma_p = fit.sigma if fit is not None else np.nan
+        if st.method == "rayleigh":
+            if st.noise.per_ping:
+                sigma_p = _noise_fit(mags[p:p + 1], st, r, th, upsample, noise_magnitudes).sigma
+            thr = rayleigh_threshold(sigma_p, pfa, convention=st.convention)
+        elif st.method == "fixed":
+            thr = float(st.value)
+        elif st.method == "fraction_of_peak":
+            thr = st.fraction * float(m.max()) if m.size else np.inf
+        else:
+            thr, _, _ = cfar_threshold(m, pfa=pfa, kind=st.cfar.kind, guard=st.cfar.guard,
+                                       training=st.cfar.training, rank=st.cfar.rank)
+            if not np.isfinite(thr).any():
+                raise NoiseEstimateError("CFAR found no noise in any training window (a noise-free "
+                                         "image): use a fixed threshold or a fraction of the peak")
+        rows, beams = local_maxima(m, above=thr)
+        t_cell = thr[rows, beams] if np.ndim(thr) else np.full(rows.size, thr)
+        cols["ping"].append(np.full(rows.size, p))
+        cols["row"].append(rows)
+        cols["beam"].append(beams)
+        cols["threshold"].append(t_cell)
+        thr_ping[p] = float(np.median(thr[np.isfinite(thr)])) if np.ndim(thr) else thr
+        sigmas[p] = sigma_p
+    ping = np.concatenate(cols["ping"]).astype(int)
+    row = np.concatenate(cols["row"]).astype(int)
+    beam = np.concatenate(cols["beam"]).astype(int)
+    threshold = np.concatenate(cols["threshold"]).astype(float)
+    table = _describe(images, record, img, mags, ping, row, beam, volume, pose)
+    table["threshold"] = threshold
+    with np.errstate(divide="ignore", invalid="ignore"):
+        table["snr_db"] = 20 * np.log10(table["amplitude"] / sigmas[ping]) if ping.size else np.zeros(0)
+    return Detections(table, thr_ping, fit, pfa, n_cells, notes)
+
+
+def _describe(images, record, img, mags, ping, row, beam, volume, pose):
+    """Refined position, elevation, 3-D location and flags of each detection."""
+    r, th = images["range_m"], images["beam_angle_rad"]
+    n = ping.size
+    rng = np.empty(n)
+    az = np.empty(n)
+    amp = np.empty(n)
+    for p in np.unique(ping):
+        k = ping == p
+        rng[k], az[k], amp[k] = refine_peaks(mags[p], row[k], beam[k], r, th)
+    out = {"ping": ping, "ping_index": np.asarray(record.ping_index)[ping] if n else np.zeros(0, int),
+           "row": row, "beam": beam, "range_m": rng, "azimuth_rad": az, "amplitude": amp}
+    psi = images.get("interferometric_phase")
+    centers = images.get("phase_centers") or {}
+    if psi is not None and "A" in centers and "B" in centers:
+        ps = psi[ping, row, beam].astype(float)
+        el, clipped = elevation_from_phase(ps, az, images["baseline"], record.wavelength_m)
+        pos = locate(2 * rng / record.sound_speed_m_s, az, ps,
+                     transmitter_m=record.transmitter_center_m, center_a_m=centers["A"],
+                     center_b_m=centers["B"], sound_speed_m_s=record.sound_speed_m_s,
+                     wavelength_m=record.wavelength_m)
+    else:
+        # no interferometry: place detections in the x–z plane (elevation unknown, shown as 0)
+        ps = np.zeros(n)
+        el = np.zeros(n)
+        clipped = np.zeros(n, bool)
+        pos = np.stack([rng * np.sin(az), np.zeros(n), rng * np.cos(az)], -1) if n else np.zeros((0, 3))
+    position, rotation = pose if pose is not None else (np.zeros(3), np.eye(3))
+    world = to_world(pos, position, rotation) if n else np.zeros((0, 3))
+    out.update({"psi_rad": ps, "elevation_rad": el, "elevation_clipped": clipped,
+                "x_m": pos[:, 0], "y_m": pos[:, 1], "z_m": pos[:, 2],
+                "world_x_m": world[:, 0], "world_y_m": world[:, 1], "world_z_m": world[:, 2],
+                "in_span": volume.in_span(rng, az),
+                "in_volume": volume.contains(pos) & (psi is not None)})
+    return out
+
+
+def score_all(table: dict, truth: dict | None, volume: CountingVolume, n_pings: int, *,
+              dr: float, dtheta: float, gate: float, unresolved: float = 1.5) -> dict:
+    """Per-ping counts, density and (with truth) scores.
+
+    Parameters
+    ----------
+    table : dict
+        Detections table.
+    truth : dict or None
+        ``ping`` (index in file) and ``position_m`` (n, 3, sonar frame) of every true target.
+
+    Returns
+    -------
+    dict of ndarray, each shape (n_pings,)
+        count_before, count_after, density (per m³ after interferometry); with truth also
+        true_in_volume, true_in_span, error_before, error_after, hits/misses/false_alarms
+        before and after, shared_cell_misses.
+    """
+    ping = table["ping"]
+    out = {"count_before": np.bincount(ping[table["in_span"]], minlength=n_pings),
+           "count_after": np.bincount(ping[table["in_volume"]], minlength=n_pings)}
+    out["density_per_m3"] = out["count_after"] / volume.volume_m3
+    if truth is None:
+        return out
+    tp = truth["position_m"]
+    tr = np.linalg.norm(tp, axis=1)
+    taz = np.arctan2(tp[:, 0], tp[:, 2])
+    t_span = volume.in_span(tr, taz)
+    t_in = volume.contains(tp)
+    keys = ("true_in_volume", "true_in_span", "hits_before", "misses_before", "false_alarms_before",
+            "hits_after", "misses_after", "false_alarms_after", "shared_cell_misses")
+    for k in keys:
+        out[k] = np.zeros(n_pings, int)
+    for p in range(n_pings):
+        tk = truth["ping"] == p
+        dk = ping == p
+        out["true_in_volume"][p] = int(t_in[tk].sum())
+        out["true_in_span"][p] = int(t_span[tk].sum())
+        for when, dsel, tsel in (("before", table["in_span"], t_span), ("after", table["in_volume"], t_in)):
+            d = dk & dsel
+            t = tk & tsel
+            s = match(table["range_m"][d], table["azimuth_rad"][d], tr[t], taz[t], dr=dr,
+                      dtheta=dtheta, gate=gate, unresolved=unresolved)
+            out[f"hits_{when}"][p] = s.hits
+            out[f"misses_{when}"][p] = s.misses
+            out[f"false_alarms_{when}"][p] = s.false_alarms
+            if when == "after":
+                out["shared_cell_misses"][p] = s.shared_cell_misses
+    out["error_before"] = out["count_before"] - out["true_in_volume"]
+    out["error_after"] = out["count_after"] - out["true_in_volume"]
+    out["true_density_per_m3"] = out["true_in_volume"] / volume.volume_m3
+    return out
