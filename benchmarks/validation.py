@@ -187,5 +187,100 @@ def elevation_vs_snr():
               "the baseline's x component (subarray B is offset by d/2).")
 
 
+@section
+def location():
+    """3-D location errors of isolated targets at SNR >= 20 dB, as a distribution."""
+    import processing
+    from acoustics.simulate import simulate
+    rng = np.random.default_rng(11)
+    pts = []
+    for i in range(10):
+        pts.append(f"    - {{range_m: {13.8 + 1.2 * i:.2f}, azimuth_deg: {rng.uniform(-4.5, 4.5):.3f}, "
+                   f"elevation_deg: {rng.uniform(-0.4, 0.4):.3f}}}")
+    sc = _scene(text="name: loc\nseed: 9\nnoise: {enabled: true, sigma_counts: 12.0}\n"
+                     "targets:\n  points:\n" + "\n".join(pts) + "\npings: {count: 100}\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tree = processing.detect(simulate(sc))
+    det = processing.detections_of(tree)
+    gt = tree["Simulation/Ground_truth"].ds
+    tp = np.stack([gt[f"target_{a}"].values for a in "xyz"], -1)
+    tping = gt["target_ping_index"].values
+    er, eaz, eel, snr = [], [], [], []
+    for p in range(100):
+        k = det["ping"] == p
+        pos = np.stack([det["x_m"][k], det["y_m"][k], det["z_m"][k]], -1)
+        for q in tp[tping == p]:
+            j = int(np.argmin(np.linalg.norm(pos - q, axis=1)))
+            rq = np.linalg.norm(q)
+            er.append(np.linalg.norm(pos[j]) - rq)
+            eaz.append((math.atan2(pos[j][0], pos[j][2]) - math.atan2(q[0], q[2])) * rq)
+            eel.append((math.atan2(pos[j][1], math.hypot(pos[j][0], pos[j][2]))
+                        - math.atan2(q[1], math.hypot(q[0], q[2]))) * rq)
+            snr.append(det["snr_db"][k][j])
+    rows = []
+    for name, e, bound in (("range (cm)", np.array(er) * 100, "2 cm"),
+                           ("azimuth x range (cm)", np.array(eaz) * 100, "2.46° x r ≈ 56–112 cm"),
+                           ("elevation x range (cm)", np.array(eel) * 100, "0.86° x r ≈ 20–39 cm")):
+        q = np.percentile(np.abs(e), [50, 90, 99, 100])
+        rows.append([name, f"{np.mean(e):+.2f}", f"{np.std(e):.2f}", f"{q[0]:.2f}", f"{q[1]:.2f}",
+                     f"{q[2]:.2f}", f"{q[3]:.2f}", bound])
+    s = np.array(snr)
+    return ("## 3-D location of isolated targets\n\n"
+            f"Ten unit targets at 13.8–24.6 m (random azimuth ±4.5°, elevation ±0.4°), channel noise "
+            f"σ = 12 counts, 100 pings: {len(er)} located detections with SNR {s.min():.0f}–{s.max():.0f} dB "
+            "(image peak over image noise σ). Errors of the nearest detection to each target, "
+            "from the thesis' system of equations solved exactly (processing/locate.py):\n\n"
+            + table(["component", "mean", "std", "median abs(e)", "90 %", "99 %", "max", "bound"], rows))
+
+
+@section
+def scenarios():
+    """The chapter-6 scenarios without noise (Tables 6.1, 6.4) and the noise statistics."""
+    import processing
+    from acoustics.simulate import simulate
+    rows = []
+    for name, label in (("counting_algorithm.yaml", "counting algorithm (Table 6.1)"),
+                        ("position.yaml", "position (Table 6.4)")):
+        s = processing.count_summary(processing.count(simulate(_scene(name))))["summary"]
+        rows.append([label, f"{s['true_in_volume']['mean']:.2f}",
+                     f"{s['error_before']['mean']:+.2f} ± {s['error_before']['std']:.2f}",
+                     f"{s['error_after']['mean']:+.2f} ± {s['error_after']['std']:.2f}",
+                     f"{s['mean_abs_error_after']:.2f}",
+                     f"{s['total_misses_after']} ({s['total_shared_cell_misses']} shared)",
+                     str(s["total_false_alarms_after"])])
+    tree = processing.image(simulate(_scene("noise_only.yaml"), pings=range(20)))
+    from processing.noise import rayleigh_fit
+    from processing.thresholds import rayleigh_threshold
+    im = processing.images_of(tree)
+    mags = np.abs(im["image"][:, 0])
+    fit = rayleigh_fit(mags, estimator="ml", decimate=(Ellipsis, slice(None, None, 4), slice(None, None, 4)))
+    expected = 126.68 * math.sqrt(im["noise_power_gain"]) * math.sqrt(math.pi / 2)
+    nrows = []
+    for p in (1e-2, 1e-3, 1e-4):
+        t = rayleigh_threshold(fit.sigma, p)
+        nrows.append([f"{p:g}", f"{t:.2f}", f"{np.mean(mags > t):.3g}", f"{mags.size:,}"])
+    return ("## Chapter-6 scenarios without noise, and the noise statistics\n\n"
+            "100 pings each, threshold 15 % of each ping's brightest cell (thesis §6.3). Errors are "
+            "counted − true in the counting volume per ping; misses after interferometry, with how "
+            "many share a resolution cell (another true target within 1.5 cells: the Rayleigh limit "
+            "of the Hamming-weighted aperture).\n\n"
+            + table(["scenario", "true per ping", "error before", "error after", "mean abs(error) after",
+                     "misses", "false alarms"], rows)
+            + "\n\nThe thesis reports for Table 6.1 occasional undercounts from targets sharing a "
+              "cell, and for Table 6.4 an overcount before interferometry that phase "
+              "interferometry removes: both reproduced. Its counting-algorithm scenario draws 15 "
+              "targets in a 40.984 m³ cuboid that is said to lie inside the 13.8 m³ counting "
+              "volume, which cannot be; here they fill a sector just inside the volume "
+              "(scenes/counting_algorithm.yaml), 3.4x denser than the thesis' 0.37 m⁻³.\n\n"
+              f"**Noise only** (`scenes/noise_only.yaml`, 20 pings, subarray A): Rayleigh fit "
+              f"μ = {fit.mu:.3f} counts against μ = σ √gain √(π/2) = {expected:.3f} expected from "
+              f"σ = 126.68 and the filters' noise power gain {im['noise_power_gain']:.5f} "
+              f"({100 * (fit.mu / expected - 1):+.2f} %); KS D = {fit.ks_statistic:.4f} "
+              f"(1 % critical {fit.ks_critical:.4f}). False-alarm rate per cell at the derived "
+              "threshold:\n\n"
+              + table(["P_fa,cell asked", "threshold (counts)", "measured rate", "cells"], nrows))
+
+
 if __name__ == "__main__":
     REPORT.main()
