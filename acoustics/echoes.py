@@ -3,12 +3,17 @@
 For scatterer P with complex strength q = ρ e^{jφ} and receiver element n::
 
     r1 = |P − T|,  r2n = |P − R_n|,  τ_n = (r1 + r2n) / c
-    A_n = k · q · E_t(P) · g(r1) · D_n(P) · g(r2n) · e^{−j2π f0 τ_n}
+    A_n = k · S · q · E_t(P) · g(r1) · D_n(P) · g(r2n) · e^{−j2π f0 τ_n}
 
-with T the transmitter's phase centre, E_t its complex response (element directivities summed
-with their exact path phases relative to T), D_n the receive element's directivity, g(r) =
-10^(−α r/20)/r the one-way spreading and absorption, and k the ADC scale. The element n then
-records A_n u(t − τ_n). Delays are exact per element (no plane-wave approximation) and computed in
+with T the transmitter's phase centre, E_t its complex directivity (element directivities summed
+with their exact path phases relative to T, 1 on axis), S = Σ_e w_e its source level, D_n the
+receive element's directivity, g(r) = 10^(−α r/20)/r the one-way spreading and absorption, and k
+the ADC scale. The element n then records A_n u(t − τ_n).
+
+Source level: each transmit element driven at unit amplitude radiates pressure 1 at 1 m on its
+own axis (the p_0n of thesis eq. 2.9–2.10), so on the array's axis the ganged elements add to
+S = Σ w_e — 16 for ABACUS, +24 dB. (Normalising the transmitter to a unit on-axis level instead
+would make sixteen elements no louder than one.) Delays are exact per element (no plane-wave approximation) and computed in
 float64.
 
 The hot loops are compiled with numba: one pass per scatterer for the transmitter factor, and one
@@ -258,7 +263,7 @@ class EchoModel:
     medium : Medium
     center_frequency_hz : float
     scale_counts : float
-        k: ADC counts per unit pressure.
+        k: ADC counts per unit pressure (a unit-driven element gives 1 at 1 m on its axis).
     fidelity : {"far_field", "huygens"}
     subdivisions : (int, int)
     baffle, spreading, absorption : bool
@@ -278,6 +283,11 @@ class EchoModel:
     @property
     def wavenumber_rad_m(self) -> float:
         return self.medium.wavenumber_rad_m(self.center_frequency_hz)
+
+    @property
+    def source_level(self) -> float:
+        """S = Σ w_e: on-axis pressure at 1 m of the ganged transmitter (unit drive per element)."""
+        return float(self.transmitter.weight.sum())
 
     def _rx_args(self, p):
         """Receiver-side arguments of the compiled kernels for scatterers ``p`` (S, 3)."""
@@ -330,7 +340,7 @@ def _alpha_np_per_m(model: EchoModel) -> float:
 
 
 def transmit_factor(model: EchoModel, positions_m, strength):
-    """Per-scatterer factor k·q·E_t(P)·g(r1) and the transmit leg r1.
+    """Per-scatterer factor k·S·q·E_t(P)·g(r1) and the transmit leg r1.
 
     Parameters
     ----------
@@ -350,7 +360,8 @@ def transmit_factor(model: EchoModel, positions_m, strength):
     p = _positions(positions_m)
     e_t, r1 = _transmit(model, p)
     g1 = model.medium.one_way_gain(r1, spreading=model.spreading, absorption=model.absorption)
-    return model.scale_counts * np.asarray(strength, complex).reshape(-1) * e_t * g1, r1
+    return (model.scale_counts * model.source_level * np.asarray(strength, complex).reshape(-1)
+            * e_t * g1, r1)
 
 
 def _kernel_inputs(model, positions_m, strength, *, by_range=False):
@@ -359,11 +370,11 @@ def _kernel_inputs(model, positions_m, strength, *, by_range=False):
     q = np.asarray(strength, complex).reshape(-1)
     e_t, r1 = _transmit(model, p)
     alpha = _alpha_np_per_m(model)
-    # k q E_t g(r1) and, folded in here, the receive leg's absorption up to e^{−α(r2 − r1)}
+    # k S q E_t g(r1) and, folded in here, the receive leg's absorption up to e^{−α(r2 − r1)}
     w = np.exp(-2.0 * alpha * r1) if alpha else np.ones_like(r1)
     if model.spreading:
         w = w / np.maximum(r1, 1e-3)
-    f_s = model.scale_counts * q * e_t * w
+    f_s = model.scale_counts * model.source_level * q * e_t * w
     rx = model._rx_args(p)
     cols = [p[:, 0], p[:, 1], p[:, 2], f_s.real, f_s.imag, r1]
     if by_range:

@@ -254,8 +254,8 @@ class AdcSpec(ConfigModel):
     """From pressure to ADC counts (thesis §3.6)."""
 
     scale_counts: PositiveReal = 16384.0
-    """k: counts per unit of pressure, where a unit source gives pressure 1 at 1 m on
-    axis (the thesis' k maps transmitter volts to ADC counts)."""
+    """k: counts per unit of pressure, where a transmit element driven at unit amplitude gives
+    pressure 1 at 1 m on its axis (the thesis' k maps transmitter volts to ADC counts)."""
     quantize: bool = False
     """Round to integers and clip to the signed range of ``bits`` (per I and Q)."""
     bits: PositiveCount = Field(12, le=32)

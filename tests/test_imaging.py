@@ -78,7 +78,8 @@ def test_image_is_calibrated_to_the_echo_amplitude():
     r1 = 20.0
     r2 = np.linalg.norm(rx.center_m - p, axis=1)
     alpha = setup.medium.absorption_db_per_m
-    a = 16384 * e_t * d / (r1 * r2) * 10 ** (-alpha * (r1 + r2) / 20)
+    source = setup.sonar.transmitter.n_elements  # each unit-driven element: pressure 1 at 1 m
+    a = 16384 * source * e_t * d / (r1 * r2) * 10 ** (-alpha * (r1 + r2) / 20)
     assert 20 * np.log10(mag.max() / a[:8].mean()) == pytest.approx(0.0, abs=0.1)
 
 

@@ -88,7 +88,7 @@ def test_compiled_arrivals_equal_the_numpy_model(fidelity):
     e_t = array_response(son.transmitter, p, wavenumber_rad_m=k, fidelity=fidelity, subdivisions=(3, 3))
     d = element_directivity(rx, p, wavenumber_rad_m=k, fidelity=fidelity, subdivisions=(3, 3))
     path = r1[:, None] + r2
-    expect = (16384.0 * q[:, None] * e_t[:, None] * d / (r1[:, None] * r2)
+    expect = (16384.0 * 16 * q[:, None] * e_t[:, None] * d / (r1[:, None] * r2)
               * 10 ** (-0.1 * path / 20) * np.exp(-2j * np.pi * path / med.wavelength_m(420_375.0)))
     np.testing.assert_allclose(tau, path / 1530.0, rtol=1e-14)
     np.testing.assert_allclose(amp, expect, rtol=1e-10, atol=1e-12 * np.abs(expect).max())

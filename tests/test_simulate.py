@@ -252,7 +252,7 @@ def test_zero_noise_is_not_drawn():
 
 
 def test_adc_clips_and_counts():
-    """A unit reflector 0.8 m away gives ~16384/0.64 = 25600 counts: far beyond 12 bits."""
+    """A unit reflector 0.8 m away gives ~16384 x 16/0.64 = 4e5 counts: far beyond 12 bits."""
     scene = text_scene("name: clip\nsampling: {time_offset_s: 0.0, adc: {quantize: true}}\n"
                        "targets:\n  points:\n    - {range_m: 0.8, azimuth_deg: 0, elevation_deg: 0}\n")
     tree = simulate(scene)
