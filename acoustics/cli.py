@@ -163,6 +163,15 @@ def cmd_count(args) -> int:
     return 0
 
 
+def cmd_view(args) -> int:
+    from .view import render_scene
+    scene = _load(args.scene)
+    out = render_scene(scene, args.output, ping=args.ping, interactive=args.interactive)
+    if out:
+        print(f"wrote {out}")
+    return 0
+
+
 def cmd_run(args) -> int:
     """The main job: simulate, image, detect, locate, count; dataset and plots in DIR."""
     import processing
@@ -237,6 +246,13 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--plots", metavar="DIR", help="detections over fan-beam images, counts vs ping")
     c.add_argument("--csv", metavar="FILE", help="write the detections table as CSV")
     c.set_defaults(func=cmd_count)
+
+    v = sub.add_parser("view", help="3-D view of a scene (meshes, sonar, beam, targets)")
+    v.add_argument("scene", help="scene file (YAML)")
+    v.add_argument("-o", "--output", help="PNG file to write")
+    v.add_argument("--ping", type=int, default=0, help="ping whose targets to draw")
+    v.add_argument("--interactive", action="store_true", help="open a window (needs a display)")
+    v.set_defaults(func=cmd_view)
     return p
 
 

@@ -364,8 +364,11 @@ def transmit_factor(model: EchoModel, positions_m, strength):
             * e_t * g1, r1)
 
 
-def _kernel_inputs(model, positions_m, strength, *, by_range=False):
-    """Columns the compiled kernels take, optionally reordered by range (see spread_arrivals)."""
+def _kernel_inputs(model, positions_m, strength, *, by_range=False, receive_positions_m=None):
+    """Columns the compiled kernels take, optionally reordered by range (see spread_arrivals).
+
+    ``receive_positions_m`` (S, 3), when given, is where the receive leg starts: the image point of
+    a path that bounces on its way back (multipath); the transmit leg uses ``positions_m``."""
     p = _positions(positions_m)
     q = np.asarray(strength, complex).reshape(-1)
     e_t, r1 = _transmit(model, p)
@@ -375,8 +378,17 @@ def _kernel_inputs(model, positions_m, strength, *, by_range=False):
     if model.spreading:
         w = w / np.maximum(r1, 1e-3)
     f_s = model.scale_counts * model.source_level * q * e_t * w
-    rx = model._rx_args(p)
-    cols = [p[:, 0], p[:, 1], p[:, 2], f_s.real, f_s.imag, r1]
+    prx = p if receive_positions_m is None else _positions(receive_positions_m)
+    if prx.shape != p.shape:
+        raise ValueError("receive_positions_m must have the shape of positions_m")
+    rx = model._rx_args(prx)
+    if receive_positions_m is not None and alpha and rx[10]:
+        # |r2 − r1| <= ||P_rx − T| − r1| + |R_n − T|: is the cheap e^{−α(r2 − r1)} still exact?
+        reach = float(np.max(np.linalg.norm(model.receiver.center_m - model.transmitter.phase_center_m, axis=1)))
+        gap = float(np.max(np.abs(np.linalg.norm(prx - model.transmitter.phase_center_m, axis=1) - r1)))
+        if alpha * (gap + reach) > EXP_SMALL_LIMIT:
+            rx = rx[:10] + (False,) + rx[11:]
+    cols = [prx[:, 0], prx[:, 1], prx[:, 2], f_s.real, f_s.imag, r1]
     if by_range:
         # a 16-bit key gets numpy's linear-time radix sort; ties keep the input order
         key = (r1 * (32767.0 / max(float(r1.max()), 1e-12))).astype(np.int16)
@@ -387,8 +399,11 @@ def _kernel_inputs(model, positions_m, strength, *, by_range=False):
     return tuple(np.ascontiguousarray(c) for c in cols) + rx
 
 
-def arrivals(model: EchoModel, positions_m, strength):
+def arrivals(model: EchoModel, positions_m, strength, *, receive_positions_m=None):
     """Delay and complex amplitude of every (scatterer, receiver element) arrival.
+
+    ``receive_positions_m`` (S, 3): where each receive leg starts, when it differs from the
+    transmit leg's end (a bounce on the way back: the image point).
 
     Returns
     -------
@@ -397,16 +412,19 @@ def arrivals(model: EchoModel, positions_m, strength):
     amplitude : ndarray, shape (S, N_rx), complex128
         A_n in ADC counts, carrier phase e^{−j2πf0τ} included.
     """
-    return _arrivals(*_kernel_inputs(model, positions_m, strength))
+    return _arrivals(*_kernel_inputs(model, positions_m, strength,
+                                     receive_positions_m=receive_positions_m))
 
 
-def spread_arrivals(model: EchoModel, positions_m, strength, *, table, t0_s, rate_hz, q0, n_out):
+def spread_arrivals(model: EchoModel, positions_m, strength, *, table, t0_s, rate_hz, q0, n_out,
+                    receive_positions_m=None):
     """The channels' fractional-delay delta trains, shape (N_rx, n_out), complex128.
 
     Scatterers are visited in order of range (a stable sort), so the delta trains are written
     nearly sequentially; the order is fixed by the scene, never by the thread count.
     """
-    args = _kernel_inputs(model, positions_m, strength, by_range=True)
+    args = _kernel_inputs(model, positions_m, strength, by_range=True,
+                          receive_positions_m=receive_positions_m)
     table = np.ascontiguousarray(table)
     out = _spread(*args, table, np.ascontiguousarray(np.diff(table, axis=0)), float(t0_s),
                   float(rate_hz), float(q0), int(n_out))

@@ -27,6 +27,7 @@ from processing.settings import ProcessingSettings
 
 from . import arrays as _arrays
 from .medium import francois_garrison_db_per_m, mackenzie_sound_speed_m_s
+from .scene_meshes import BoundarySpec, MeshTargetSpec, ReverberationSpec
 
 __all__ = ["SCHEMA_VERSION", "Scene", "SceneError", "SceneWarning", "load_scene",
            "scene_from_text", "json_schema"]
@@ -441,20 +442,15 @@ Population = Annotated[Union[Annotated[CuboidPopulation, Tag("uniform_cuboid")],
 
 
 class TargetsSpec(ConfigModel):
-    """Point targets (fish, squid): explicit points and random populations."""
+    """Point targets (fish, squid): explicit points and random populations; and mesh targets
+    whose echo comes from their geometry (calibration spheres, rocks, bodies)."""
 
     points: tuple[PointTarget, ...] = ()
     populations: tuple[Population, ...] = ()
+    meshes: tuple[MeshTargetSpec, ...] = ()
 
 
 # ------------------------------------------------------------------ the rest
-
-
-def _no_boundaries_yet(v):
-    if v not in (None, [], ()):
-        raise ValueError("boundary meshes are not available in this version; only [] is "
-                         "accepted")
-    return ()
 
 
 class PingsSpec(ConfigModel):
@@ -497,6 +493,15 @@ class EffectsSpec(ConfigModel):
     """Spherical spreading 1/r per leg."""
     absorption: bool = True
     """Absorption 10^(-α r/20) per leg."""
+    occlusion: bool = True
+    """Point targets whose transmit or receive path a mesh blocks give no direct echo (only
+    with meshes in the scene)."""
+    multipath_order: Count = Field(0, le=3)
+    """Specular bounces per leg on planar boundaries (0: none; 1: Tx→boundary→target→Rx,
+    Tx→target→boundary→Rx and both)."""
+    reverberation: ReverberationSpec = ReverberationSpec()
+    ray_threads: PositiveCount | None = None
+    """Threads for ray batches (default: every core)."""
 
 
 class Scene(ConfigModel):
@@ -513,7 +518,7 @@ class Scene(ConfigModel):
     medium: MediumSpec = MediumSpec()
     noise: NoiseSpec = NoiseSpec()
     targets: TargetsSpec = TargetsSpec()
-    boundaries: Annotated[tuple, BeforeValidator(_no_boundaries_yet)] = ()
+    boundaries: tuple[BoundarySpec, ...] = ()
     pings: PingsSpec = PingsSpec()
     effects: EffectsSpec = EffectsSpec()
     processing: ProcessingSettings = ProcessingSettings()
@@ -555,6 +560,13 @@ class Scene(ConfigModel):
     def source_path(self) -> Path | None:
         """The file this scene was read from (None when built from text)."""
         return self._source_path
+
+    def resolve_path(self, path: str) -> Path:
+        """A path written in the scene, relative to the scene file's folder."""
+        p = Path(path)
+        if p.is_absolute() or self._source_path is None:
+            return p
+        return self._source_path.parent / p
 
     def resolved_text(self) -> str:
         """The fully resolved scene as YAML, every default filled in (round-trips)."""

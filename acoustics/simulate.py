@@ -2,14 +2,19 @@
 
 Per ping p (independent of every other ping; all draws seeded by (seed, p, stream)):
 
-1. ``targets``   draw the point targets (positions, backscatter, phases);
-2. ``echoes``    synthesise every receiver element's complex baseband samples (fast or exact);
-3. ``noise``     add band-limited receiver noise            — only if ``noise.enabled``;
-4. ``adc``       quantise and clip to the ADC's range         — only if ``sampling.adc.quantize``.
+1. ``targets``        draw the point targets (positions, backscatter, phases);
+2. ``occlusion``      drop the direct echo of targets a mesh shadows   — only with meshes;
+3. ``multipath``      specular image-source paths                       — only if multipath_order > 0;
+4. ``mesh_targets``   physical-optics facets of mesh targets            — only with mesh targets;
+5. ``reverberation``  boundary facet scatterers from transmit rays      — only if enabled;
+6. ``echoes``         synthesise every receiver element's complex baseband samples (fast or exact);
+7. ``noise``          add band-limited receiver noise                   — only if ``noise.enabled``;
+8. ``adc``            quantise and clip to the ADC's range              — only if ``quantize``.
 
-``setup`` (arrays, pulse, transmit beamwidths) runs once per call and ``dataset`` assembles the
-output; the provenance records the stages that ran and their wall time. Stages a scene does not
-need are not entered (a scene without targets has no ``echoes`` stage, a quiet one no ``noise``).
+``setup`` (arrays, pulse, transmit beamwidths, and the Embree scene when there are meshes) runs
+once per call and ``dataset`` assembles the output; the provenance records the stages that ran,
+their wall time and the rays cast per purpose. Stages a scene does not need are not entered (a
+scene without meshes never builds a ray caster, a quiet one has no ``noise`` stage).
 """
 from __future__ import annotations
 
@@ -42,6 +47,7 @@ class Setup:
     tx_beamwidth_az_rad: float
     tx_beamwidth_el_rad: float
     counting_range_m: tuple
+    ray_scene: object = None
 
 
 @lru_cache(maxsize=16)
@@ -56,8 +62,9 @@ def _array_key(arr) -> bytes:
                     (arr.center_m, arr.width_m, arr.height_m, arr.rotation_rad, arr.weight))
 
 
-def make_setup(scene) -> Setup:
-    """Build the arrays, medium, pulse and echo model of a scene (once per run)."""
+def make_setup(scene, log: StageLog | None = None) -> Setup:
+    """Build the arrays, medium, pulse and echo model of a scene (once per run), and its ray
+    scene when it has meshes."""
     sonar = build_sonar(scene)
     medium = Medium.from_spec(scene.medium)
     pulse = Pulse.from_spec(scene.signal)
@@ -73,7 +80,13 @@ def make_setup(scene) -> Setup:
     if rng_m is None:
         c, s = medium.sound_speed_m_s, scene.sampling
         rng_m = (c * s.time_offset_s / 2, c * (s.time_offset_s + s.samples / s.rate_hz) / 2)
-    return Setup(sonar, medium, pulse, model, az, el, tuple(float(r) for r in rng_m))
+    setup = Setup(sonar, medium, pulse, model, az, el, tuple(float(r) for r in rng_m))
+    if scene.boundaries or scene.targets.meshes:
+        from .raytraced import build_ray_scene
+        log = log if log is not None else StageLog()
+        with log.stage("rays_build"):
+            object.__setattr__(setup, "ray_scene", build_ray_scene(scene, setup))
+    return setup
 
 
 def counting_volume_of(setup: Setup, positions_sonar_m) -> np.ndarray:
@@ -86,6 +99,12 @@ def counting_volume_of(setup: Setup, positions_sonar_m) -> np.ndarray:
     r0, r1 = setup.counting_range_m
     return ((r >= r0) & (r <= r1) & (np.abs(az) <= setup.tx_beamwidth_az_rad / 2)
             & (np.abs(el) <= setup.tx_beamwidth_el_rad / 2))
+
+
+def _with_shadow(targets: TargetSet, shadowed):
+    """The target set with its shadowing recorded (ground truth)."""
+    from dataclasses import replace
+    return replace(targets, shadowed=np.asarray(shadowed, bool))
 
 
 def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
@@ -106,15 +125,37 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
     n_ch = setup.sonar.n_channels
     with log.stage("targets"):
         targets = draw_targets(scene, ping, setup.sonar.pose, seed=seed)
-    if len(targets):
+    strength = targets.rho_m * np.exp(1j * targets.phase_rad)
+    rs = setup.ray_scene
+    shadowed = np.zeros(len(targets), bool)
+    if rs is not None and fx.occlusion and len(targets):
+        with log.stage("occlusion"):
+            shadowed = rs.shadowed(targets.position_sonar_m)
+    from .raytraced import VirtualScatterers
+    direct = ~shadowed
+    parts = [VirtualScatterers(targets.position_sonar_m[direct], targets.position_sonar_m[direct],
+                               strength[direct], np.full(int(direct.sum()), "direct"))]
+    if rs is not None and fx.multipath_order > 0 and rs.planes and len(targets):
+        with log.stage("multipath"):
+            parts.append(rs.multipath(targets.position_sonar_m, strength, fx.multipath_order))
+    if rs is not None and scene.targets.meshes:
+        with log.stage("mesh_targets"):
+            parts.append(rs.mesh_targets())
+    if rs is not None and fx.reverberation.enabled and scene.boundaries:
+        with log.stage("reverberation"):
+            parts.append(rs.reverberation(scene, setup, ping, seed))
+    vs = VirtualScatterers.concat(parts)
+    if len(vs):
         with log.stage("echoes"):
-            strength = targets.rho_m * np.exp(1j * targets.phase_rad)
-            x = synthesize(setup.model, targets.position_sonar_m, strength, pulse=setup.pulse,
+            bistatic = not np.array_equal(vs.p_tx, vs.p_rx)
+            x = synthesize(setup.model, vs.p_tx, vs.strength, pulse=setup.pulse,
                            rate_hz=s.rate_hz, n_samples=s.samples, t0_s=s.time_offset_s,
                            method=fx.synthesis, kernel_length=fx.kernel_length,
-                           oversampling=fx.oversampling)
+                           oversampling=fx.oversampling,
+                           receive_positions_m=vs.p_rx if bistatic else None)
     else:
         x = np.zeros((n_ch, s.samples), complex)
+    targets = _with_shadow(targets, shadowed)
     if scene.noise.enabled and scene.noise.sigma_counts > 0:
         with log.stage("noise"):
             x = x + band_limited_noise(ping_rng(seed, ping, "noise"), n_ch, s.samples,
@@ -162,7 +203,7 @@ def simulate(scene, *, pings=None, seed: int | None = None, progress=None):
         raise ValueError("ping indices must be >= 0")
     log = StageLog()
     with log.stage("setup"):
-        setup = make_setup(scene)
+        setup = make_setup(scene, log)
     n_ch, n = setup.sonar.n_channels, scene.sampling.samples
     samples = np.zeros((len(pings), n_ch, n), np.complex64)
     clipped = np.zeros((len(pings), n_ch), int) if scene.sampling.adc.quantize else None
@@ -178,5 +219,6 @@ def simulate(scene, *, pings=None, seed: int | None = None, progress=None):
     with log.stage("dataset"):
         tree = build_tree(scene, setup, pings, samples, clipped, truth, log, seed)
     # the provenance was written inside the "dataset" stage: rewrite it with that stage's time
-    tree["Provenance"] = xr.DataTree(provenance_dataset(scene, seed, log))
+    from .simulated_dataset import _rays
+    tree["Provenance"] = xr.DataTree(provenance_dataset(scene, seed, log, _rays(setup)))
     return tree

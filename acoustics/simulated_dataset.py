@@ -26,7 +26,7 @@ def versions() -> dict:
             "platform": platform.platform()}
 
 
-def provenance_dataset(scene, seed: int, log) -> xr.Dataset:
+def provenance_dataset(scene, seed: int, log, rays_cast: dict | None = None) -> xr.Dataset:
     """/Provenance: resolved scene, its sha256, the seed, versions, stages and their times."""
     names = log.names
     return xr.Dataset(
@@ -37,6 +37,7 @@ def provenance_dataset(scene, seed: int, log) -> xr.Dataset:
         attrs={"scene_text": scene.resolved_text(), "scene_sha256": scene.sha256(),
                "scene_file": str(scene.source_path or ""), "seed": int(seed),
                "stages_run": ",".join(names), "versions": json.dumps(versions()),
+               "rays_cast_json": json.dumps(rays_cast or {}),
                "command": " ".join(sys.argv)})
 
 
@@ -135,9 +136,14 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.Da
     truth_ds = _truth(setup, pings, ping_time, truth)
     tree = xr.DataTree.from_dict({
         "/": root, "/Environment": env, "/Platform": platform_ds,
-        "/Provenance": provenance_dataset(scene, seed, log), "/Sonar": sonar_ds,
+        "/Provenance": provenance_dataset(scene, seed, log, _rays(setup)), "/Sonar": sonar_ds,
         f"/{ELEMENT_GROUP}": eg, f"/{TRUTH_GROUP}": truth_ds})
     return tree
+
+
+def _rays(setup) -> dict:
+    rs = setup.ray_scene
+    return dict(rs.caster.rays_cast) if rs is not None else {}
 
 
 def _truth(setup, pings, ping_time, truth) -> xr.Dataset:
@@ -150,10 +156,12 @@ def _truth(setup, pings, ping_time, truth) -> xr.Dataset:
         rho = np.concatenate([t.rho_m for t in truth])
         ph = np.concatenate([t.phase_rad for t in truth])
         grp = np.concatenate([t.group for t in truth])
+        shd = np.concatenate([t.shadowed if t.shadowed is not None else np.zeros(len(t), bool) for t in truth])
     else:
         ps = pw = np.zeros((0, 3))
         rho = ph = np.zeros(0)
         grp = np.zeros(0, int)
+        shd = np.zeros(0, bool)
     r, az, el = cartesian_to_spherical(ps)
     inside = counting_volume_of(setup, ps)
     with np.errstate(divide="ignore"):
@@ -177,6 +185,8 @@ def _truth(setup, pings, ping_time, truth) -> xr.Dataset:
          "target_phase": xr.DataArray(ph, dims="target", attrs={"units": "rad"}),
          "target_group": xr.DataArray(grp, dims="target", attrs={"long_name": "-1 explicit point, else population index"}),
          "target_in_counting_volume": xr.DataArray(inside.astype(np.int8), dims="target"),
+         "target_shadowed": xr.DataArray(shd.astype(np.int8), dims="target",
+                                         attrs={"long_name": "1 where a mesh blocks the direct path (no direct echo)"}),
          "truth_count_total": xr.DataArray(np.asarray(n, np.int64), dims="ping_time"),
          "truth_count_in_volume": xr.DataArray(per_ping_in.astype(np.int64), dims="ping_time")},
         coords={"ping_time": ping_time},

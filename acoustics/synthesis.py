@@ -80,7 +80,7 @@ def fractional_delay_table(taps: int, transition: float, phases: int = _TABLE_PH
 
 def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz: float,
                n_samples: int, t0_s: float = 0.0, method: str = "fast", kernel_length: int = 8,
-               oversampling: int = 2):
+               oversampling: int = 2, receive_positions_m=None):
     """Complex baseband samples of every receiver element for a set of point scatterers.
 
     Parameters
@@ -103,6 +103,9 @@ def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz
         Fractional-delay kernel taps on the fine grid (``fast`` only).
     oversampling : int
         Fine-grid factor U >= 1 (``fast`` only).
+    receive_positions_m : array_like, shape (S, 3), optional
+        Start of each receive leg when it differs from the transmit leg's end (the image point of
+        a path that bounces on its way back); default the same points.
 
     Returns
     -------
@@ -118,15 +121,16 @@ def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz
     n_rx = model.receiver.n_elements
     if p.shape[0] == 0:
         return np.zeros((n_rx, n_samples), complex)
+    prx = None if receive_positions_m is None else np.asarray(receive_positions_m, float).reshape(-1, 3)
     if method == "exact":
-        return _exact(model, p, q, pulse, rate_hz, n_samples, t0_s)
+        return _exact(model, p, q, pulse, rate_hz, n_samples, t0_s, prx)
     if int(oversampling) < 1:
         raise ValueError(f"oversampling must be >= 1, got {oversampling}")
-    return _fast(model, p, q, pulse, rate_hz, n_samples, t0_s, kernel_length, int(oversampling))
+    return _fast(model, p, q, pulse, rate_hz, n_samples, t0_s, kernel_length, int(oversampling), prx)
 
 
-def _exact(model, p, q, pulse, fs, n, t0):
-    tau, amp = arrivals(model, p, q)
+def _exact(model, p, q, pulse, fs, n, t0, prx=None):
+    tau, amp = arrivals(model, p, q, receive_positions_m=prx)
     n_rx = tau.shape[1]
     m = pulse.n_samples(fs) + 1
     out_r = np.zeros(n_rx * n)
@@ -150,7 +154,7 @@ def _exact(model, p, q, pulse, fs, n, t0):
     return (out_r + 1j * out_i).reshape(n_rx, n)
 
 
-def _fast(model, p, q, pulse, fs, n, t0, taps, up):
+def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None):
     fine = fs * up
     replica = pulse.replica(fine)
     m = replica.size
@@ -159,7 +163,8 @@ def _fast(model, p, q, pulse, fs, n, t0, taps, up):
     n_out = q0 + up * n + taps
     band = min(pulse.bandwidth_hz + 4.0 / pulse.duration_s, 0.98 * fine)
     table = fractional_delay_table(int(taps), (fine - band) / fine)
-    delta = spread_arrivals(model, p, q, table=table, t0_s=t0, rate_hz=fine, q0=q0, n_out=n_out)
+    delta = spread_arrivals(model, p, q, table=table, t0_s=t0, rate_hz=fine, q0=q0, n_out=n_out,
+                            receive_positions_m=prx)
     nfft = sfft.next_fast_len(n_out + m - 1)  # linear, not circular, convolution
     spec = sfft.fft(delta, nfft, axis=1, workers=-1) * sfft.fft(replica, nfft)
     full = sfft.ifft(spec, axis=1, workers=-1)

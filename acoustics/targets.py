@@ -50,6 +50,8 @@ class TargetSet:
         Extra echo phase (rad); 0 unless the target asks for a random phase.
     group : ndarray of int, shape (n,)
         -1 for explicit points, else the index of the population.
+    shadowed : ndarray of bool, shape (n,), optional
+        A mesh blocks the direct path.
     """
 
     position_sonar_m: np.ndarray
@@ -57,6 +59,8 @@ class TargetSet:
     rho_m: np.ndarray
     phase_rad: np.ndarray
     group: np.ndarray
+    shadowed: np.ndarray | None = None
+    """Whether a mesh blocks the target's direct path (set by the simulation; None before)."""
 
     def __len__(self) -> int:
         return int(self.rho_m.shape[0])

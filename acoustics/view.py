@@ -1,0 +1,121 @@
+"""3-D view of a scene (pyvista): meshes, sonar and pose, transmit beam, counting volume, targets
+(coloured inside / outside / shadowed) and a sample of reverberation ray hits. Off-screen by
+default; an interactive window when asked for and a display exists. World frame, z down."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["render_scene"]
+
+
+def _sector(r0, r1, half_az, half_el, n=24):
+    """Surface of a sonar-frame sector (counting volume / beam wedge) as points and faces."""
+    import pyvista as pv
+    az = np.linspace(-half_az, half_az, n)
+    el = np.linspace(-half_el, half_el, 3)
+    pts = []
+    for r in (r0, r1):
+        for e in el:
+            for a in az:
+                pts.append([r * np.cos(e) * np.sin(a), r * np.sin(e), r * np.cos(e) * np.cos(a)])
+    grid = pv.StructuredGrid()
+    p = np.array(pts).reshape(2, 3, n, 3)
+    grid.points = p.reshape(-1, 3)
+    grid.dimensions = (n, 3, 2)
+    return grid.extract_surface()
+
+
+def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, interactive: bool = False,
+                 window_size=(1400, 1000)):
+    """Draw the scene; write a PNG when ``output`` is given. Returns the output path (or None)."""
+    import pyvista as pv
+
+    from .simulate import counting_volume_of, make_setup
+    from .targets import draw_targets
+
+    off = not (interactive and (os.environ.get("DISPLAY") or os.name == "nt"))
+    setup = make_setup(scene)
+    pose = setup.sonar.pose
+    to_world = pose.to_world
+    plotter = pv.Plotter(off_screen=off, window_size=list(window_size))
+    plotter.set_background("white")
+    rs = setup.ray_scene
+    colours = {"surface": "lightblue", "floor": "tan", "obstacle": "dimgray", "rigid": "gold",
+               "pressure_release": "orange"}
+    if rs is not None:
+        for sm in rs.meshes:
+            v = to_world(sm.mesh.vertices)
+            faces = np.hstack([np.full((len(sm.mesh.faces), 1), 3), sm.mesh.faces]).ravel()
+            opacity = 0.35 if sm.role == "surface" else 0.9
+            plotter.add_mesh(pv.PolyData(v, faces), color=colours.get(sm.role, "gray"),
+                             opacity=opacity, ambient=0.55, diffuse=0.5, specular=0.0,
+                             label=sm.name)
+        if scene.effects.reverberation.enabled:
+            rs.reverberation(scene, setup, ping, scene.seed)
+            if len(rs.hit_sample):
+                plotter.add_points(to_world(rs.hit_sample), color="saddlebrown", point_size=3,
+                                   render_points_as_spheres=True, label="ray hits (sample)")
+    # sonar: its arrays enlarged 10x so they show, and its axes
+    origin = pose.position_m
+    for arr, col in ((setup.sonar.transmitter, "red"), (setup.sonar.receiver.elements, "blue")):
+        pts = to_world(arr.center_m * 10)
+        plotter.add_points(pts, color=col, point_size=8, render_points_as_spheres=True)
+    for axis, col, lab in ((0, "blue", "x_s (azimuth)"), (1, "green", "y_s (elevation)"), (2, "red", "boresight")):
+        plotter.add_mesh(pv.Arrow(origin, pose.rotation[:, axis], scale=2.5), color=col, label=lab)
+    # transmit beam (10 dB wedge) and counting volume
+    r_end = setup.counting_range_m[1] * 1.15
+    from .beams import beamwidth
+    tx = setup.sonar.transmitter
+    kw = dict(medium=setup.medium, frequency_hz=scene.signal.center_frequency_hz)
+    wedge = _sector(0.5, r_end, beamwidth(tx, plane="azimuth", level_db=-10, **kw) / 2,
+                    beamwidth(tx, plane="elevation", level_db=-10, **kw) / 2)
+    wedge.points = to_world(wedge.points)
+    plotter.add_mesh(wedge, color="orange", opacity=0.12, label="transmit beam (10 dB)")
+    r0, r1 = setup.counting_range_m
+    vol = _sector(r0, r1, setup.tx_beamwidth_az_rad / 2, setup.tx_beamwidth_el_rad / 2, n=6)
+    vol.points = to_world(vol.points)
+    plotter.add_mesh(vol, color="green", opacity=0.25, label="counting volume")
+    plotter.add_mesh(vol.extract_feature_edges(), color="darkgreen", line_width=2)
+    # targets of one ping
+    t = draw_targets(scene, ping, pose)
+    if len(t):
+        inside = counting_volume_of(setup, t.position_sonar_m)
+        shadow = rs.shadowed(t.position_sonar_m) if rs is not None else np.zeros(len(t), bool)
+        for sel, col, lab in ((inside & ~shadow, "limegreen", "targets inside"),
+                              (~inside & ~shadow, "black", "targets outside"),
+                              (shadow, "red", "targets shadowed")):
+            if sel.any():
+                plotter.add_points(t.position_world_m[sel], color=col,
+                                   point_size=14 if col == "red" else 10,
+                                   render_points_as_spheres=True, label=lab)
+    plotter.add_legend(bcolor="white", size=(0.22, 0.25))
+    plotter.show_grid(xtitle="x forward (m)", ytitle="y starboard (m)", ztitle="z depth (m)")
+    # a vertical fan (down-looking sonar) is seen square-on from aft of it and a little above; a
+    # horizontal fan (sideways-looking sonar) from its port side at its own depth, so that the
+    # surface, the sonar and the targets' depths show; depth always increases down the screen
+    focus = to_world(np.array([0.0, 0.0, 0.45 * r1]))
+    span = max(r1, 10.0)
+    x_w, y_w, z_w = pose.rotation[:, 0], pose.rotation[:, 1], pose.rotation[:, 2]
+    up = np.array([0.0, 0.0, -1.0])
+    if abs(y_w[2]) < 0.7:
+        view_w = y_w - 0.35 * z_w + 0.35 * up
+    else:
+        view_w = -x_w - 0.5 * z_w + 0.1 * up
+    view_w = view_w / np.linalg.norm(view_w)
+    plotter.camera.focal_point = focus
+    plotter.camera.position = focus + 2.6 * span * view_w
+    plotter.camera.up = tuple(up)
+    out = None
+    if output is not None:
+        out = Path(output)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        tmp = out.with_name(f".{out.stem}.tmp.png")
+        plotter.screenshot(str(tmp))
+        tmp.replace(out)
+    if not off:
+        plotter.show()
+    plotter.close()
+    return out
