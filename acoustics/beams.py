@@ -162,6 +162,35 @@ def beamwidth(array: ElementArray, *, plane: str, level_db: float = -3.0,
     return float(lobe.right - lobe.left)
 
 
+def illuminated_extent(array: ElementArray, *, plane: str, level_db: float,
+                       medium: Medium | None = None, frequency_hz: float | None = None) -> tuple:
+    """Outermost angles at which a principal cut reaches ``level_db`` below its peak.
+
+    Unlike :func:`beamwidth` this counts every lobe, sidelobes and grating lobes included: it is
+    the angular extent a ray fan must cover to catch everything the array puts above the level.
+
+    Parameters
+    ----------
+    array : ElementArray
+    plane : {"azimuth", "elevation"}
+    level_db : float
+        Negative level (dB, one-way pattern) relative to the peak of the cut.
+    medium : Medium, optional
+    frequency_hz : float, optional
+
+    Returns
+    -------
+    (lo_rad, hi_rad) : tuple of float
+        On a 0.005° grid over [−90°, 90°]; the lobe edges are widened by one grid step.
+    """
+    if not level_db < 0:
+        raise ValueError(f"level_db must be negative (a level below the peak), got {level_db!r}")
+    a, mag = pattern_cut(array, plane=plane, medium=medium, frequency_hz=frequency_hz)
+    above = np.flatnonzero(mag >= mag.max() * 10.0 ** (level_db / 20.0))
+    step = a[1] - a[0]
+    return (max(float(a[above[0]] - step), -np.pi / 2), min(float(a[above[-1]] + step), np.pi / 2))
+
+
 def peak_sidelobe_db(array: ElementArray, *, plane: str, medium: Medium | None = None,
                      frequency_hz: float | None = None, fidelity: str = "far_field",
                      distance_m: float | None = None, subdivisions=(4, 4)) -> float:

@@ -40,7 +40,14 @@ def cmd_scene(args) -> int:
         raise UsageError(f"abacus scene {args.action}: give a scene FILE")
     scene = _load(args.file)
     if args.action == "check":
-        print(f"{args.file}: ok — scene '{scene.name}', {scene.pings.count} ping(s), "
+        meshes = ""
+        if scene.boundaries or scene.targets.meshes:
+            # build every mesh now, so a bad mesh file fails here and not mid-run
+            from .sonar import build_sonar
+            from .meshes import scene_meshes
+            built = scene_meshes(scene, build_sonar(scene).pose)
+            meshes = f", {len(built)} mesh(es), {sum(len(m.mesh.faces) for m in built)} faces"
+        print(f"{args.file}: ok — scene '{scene.name}', {scene.pings.count} ping(s){meshes}, "
               f"sha256 {scene.sha256()[:12]}")
     else:
         sys.stdout.write(scene.resolved_text())

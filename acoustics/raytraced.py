@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .beams import beamwidth
+from .beams import illuminated_extent
 from .meshes import SceneMesh, scene_meshes
 from .medium import Medium
 from .raycast import RayCaster
@@ -121,17 +121,19 @@ class RayScene:
         tx = setup.sonar.transmitter
         lvl = spec.beam_level_db
         kw = dict(medium=setup.medium, frequency_hz=self.frequency_hz)
-        half_az = beamwidth(tx, plane="azimuth", level_db=lvl, **kw) / 2
-        half_el = beamwidth(tx, plane="elevation", level_db=lvl, **kw) / 2
+        # the fan covers every lobe above the level, sidelobes included: a floor lit by an
+        # elevation sidelobe echoes at its own range, as it does at sea
+        az_lo, az_hi = illuminated_extent(tx, plane="azimuth", level_db=lvl, **kw)
+        el_lo, el_hi = illuminated_extent(tx, plane="elevation", level_db=lvl, **kw)
         dens = spec.rays_per_square_degree
-        n_az = max(2, int(np.ceil(np.degrees(2 * half_az) * np.sqrt(dens))))
-        n_el = max(2, int(np.ceil(np.degrees(2 * half_el) * np.sqrt(dens))))
+        n_az = max(2, int(np.ceil(np.degrees(az_hi - az_lo) * np.sqrt(dens))))
+        n_el = max(2, int(np.ceil(np.degrees(el_hi - el_lo) * np.sqrt(dens))))
         rng = ping_rng(seed, FIXED, "reverberation", 1)
         ia, ie = np.meshgrid(np.arange(n_az), np.arange(n_el), indexing="ij")
-        d_az, d_el = 2 * half_az / n_az, 2 * half_el / n_el
+        d_az, d_el = (az_hi - az_lo) / n_az, (el_hi - el_lo) / n_el
         # jittered grid: one ray per cell at a random place in it (frozen)
-        az = -half_az + (ia.ravel() + rng.random(ia.size)) * d_az
-        el = -half_el + (ie.ravel() + rng.random(ie.size)) * d_el
+        az = az_lo + (ia.ravel() + rng.random(ia.size)) * d_az
+        el = el_lo + (ie.ravel() + rng.random(ie.size)) * d_el
         u = np.stack([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)], -1)
         solid = np.cos(el) * d_az * d_el
         s = scene.sampling

@@ -633,12 +633,34 @@ def load_scene(path: str | Path, *, check: bool = True) -> Scene:
         raise SceneError(f"{path}: the file is empty; a scene needs at least 'name'")
     scene = _validate(data, file=path, marks=marks)
     scene._source_path = path.resolve()
+    _check_files(scene, path, marks)
     if check:
         for message, key in cross_check(scene):
             line = marks.get(tuple(_key_tuple(key)))
             where = f"{path}:{line}" if line else str(path)
             warnings.warn(f"{where}: {key}: {message}", SceneWarning, stacklevel=2)
     return scene
+
+
+def mesh_files(scene: Scene):
+    """(key, path written in the scene) of every file a scene's meshes read."""
+    items = [(f"boundaries[{i}]", b) for i, b in enumerate(scene.boundaries)]
+    items += [(f"targets.meshes[{i}]", t) for i, t in enumerate(scene.targets.meshes)]
+    for key, spec in items:
+        file = getattr(spec.mesh, "file", None)
+        if file is not None:
+            yield f"{key}.mesh.file", file
+
+
+def _check_files(scene: Scene, path: Path, marks):
+    """A missing mesh or height-grid file is a scene error at load, not a surprise mid-run."""
+    for key, file in mesh_files(scene):
+        target = scene.resolve_path(file)
+        if not target.is_file():
+            line = marks.get(tuple(_key_tuple(key)))
+            where = f"{path}:{line}" if line else str(path)
+            raise SceneError(f"{where}: {key}: file {file!r} not found (looked for {target}); "
+                             f"paths are relative to the scene file's folder")
 
 
 def scene_from_text(text: str, *, name: str = "<text>", check: bool = False) -> Scene:

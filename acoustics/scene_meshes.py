@@ -196,7 +196,8 @@ class ReverberationSpec(ConfigModel):
 
     enabled: bool = False
     beam_level_db: Real = Field(-20.0, lt=0, ge=-60)
-    """Rays fill the transmitter's beam down to this level (its widths at that level)."""
+    """Rays fill the azimuth x elevation rectangle outside which the transmitter's principal
+    cuts stay below this level (dB re peak, sidelobes included): an accuracy knob."""
     rays_per_square_degree: PositiveReal = Field(400.0, le=1e6)
     """Ray density: the accuracy knob (docs/accuracy.md)."""
     refresh_phase: bool = False
