@@ -21,6 +21,7 @@ from __future__ import annotations
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
@@ -28,6 +29,54 @@ from embreex.mesh_construction import TriangleMesh
 __all__ = ["Hits", "RayCaster"]
 
 _MIN_CHUNK = 32_768
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _prepare(o, d, eps, o32, d32):
+    """The float32 rays Embree takes (unit directions, origins ``eps`` along the ray); False
+    if an origin or direction is not finite or a direction is zero."""
+    ok = True
+    for i in range(o.shape[0]):
+        n2 = d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1] + d[i, 2] * d[i, 2]
+        if not (n2 > 0.0 and n2 < np.inf):
+            ok = False
+            n2 = 1.0
+        inv = 1.0 / np.sqrt(n2)
+        for j in range(3):
+            u = d[i, j] * inv
+            if not np.isfinite(o[i, j]):
+                ok = False
+            d32[i, j] = u
+            o32[i, j] = o[i, j] + eps * u
+    return ok
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _refine(face, o, d, face_plane, face_mesh, limit, out_face, out_mesh, out_t, out_p):
+    """float64 distance t = (n·v0 − n·o)/(n·d) of each hit from its triangle's plane
+    (face_plane rows: n, n·v0); a hit past ``limit`` (float32 may admit one just beyond it) is
+    a miss."""
+    scalar_limit = limit.shape[0] == 1
+    for i in range(face.shape[0]):
+        f = face[i]
+        t = np.inf
+        inv = 1.0 / np.sqrt(d[i, 0] * d[i, 0] + d[i, 1] * d[i, 1] + d[i, 2] * d[i, 2])
+        ux, uy, uz = d[i, 0] * inv, d[i, 1] * inv, d[i, 2] * inv
+        if f >= 0:
+            nx, ny, nz, nd = face_plane[f, 0], face_plane[f, 1], face_plane[f, 2], face_plane[f, 3]
+            den = nx * ux + ny * uy + nz * uz
+            num = nd - (nx * o[i, 0] + ny * o[i, 1] + nz * o[i, 2])
+            t = num / den if den != 0.0 else 0.0
+            if t > limit[0 if scalar_limit else i]:
+                f = -1
+                t = np.inf
+        out_face[i] = f
+        out_mesh[i] = face_mesh[f] if f >= 0 else -1
+        out_t[i] = t
+        tt = t if f >= 0 else 0.0
+        out_p[i, 0] = o[i, 0] + tt * ux
+        out_p[i, 1] = o[i, 1] + tt * uy
+        out_p[i, 2] = o[i, 2] + tt * uz
 
 
 @dataclass(frozen=True)
@@ -44,23 +93,31 @@ class Hits:
         Distance (m) along the ray, float64 from the triangle; inf for a miss.
     point : ndarray, shape (n, 3)
         Hit points (m); NaN-free: the ray's origin for a miss.
-    normal : ndarray, shape (n, 3)
-        Unit normal of the face hit, as stored in the mesh; zeros for a miss.
+    face_normals : ndarray, shape (F, 3)
+        The caster's unit face normals (shared, not copied).
     """
 
     face: np.ndarray
     mesh: np.ndarray
     distance: np.ndarray
     point: np.ndarray
-    normal: np.ndarray
+    face_normals: np.ndarray
 
     @property
     def hit(self) -> np.ndarray:
         return self.face >= 0
 
+    @property
+    def normal(self) -> np.ndarray:
+        """Unit normal (n, 3) of the face hit, as stored in the mesh; zeros for a miss."""
+        return np.where(self.hit[:, None], self.face_normals[np.maximum(self.face, 0)], 0.0)
+
 
 class RayCaster:
     """Embree scene of a list of :class:`~acoustics.meshes.SceneMesh` (sonar frame).
+
+    One batch at a time: a caster reuses its float32 ray buffers between batches (each batch
+    is itself split across threads).
 
     Parameters
     ----------
@@ -93,6 +150,9 @@ class RayCaster:
         norm = np.linalg.norm(n, axis=1)
         self.face_normal = n / np.where(norm > 0, norm, 1.0)[:, None]
         self.face_v0 = tri[:, 0].copy()
+        # rows n, n·v0: one cache line per hit when refining
+        self.face_plane = np.ascontiguousarray(np.column_stack(
+            [self.face_normal, np.einsum("ij,ij->i", self.face_normal, self.face_v0)]))
         self.extent_m = float(np.max(np.abs(self.vertices))) if len(self.vertices) else 1.0
         self.eps_m = max(64 * np.spacing(np.float32(max(self.extent_m, 1.0))).item(), 1e-7)
         self.threads = threads or os.cpu_count() or 1
@@ -100,6 +160,7 @@ class RayCaster:
         TriangleMesh(scene=self._scene, vertices=self.vertices.astype(np.float32),
                      indices=self.faces.astype(np.int32))
         self.rays_cast: dict[str, int] = {}
+        self._buffers = None
 
     # ------------------------------------------------------------------ queries
     def _run(self, o32, d32, dists, query):
@@ -129,45 +190,77 @@ class RayCaster:
         Parameters
         ----------
         origins_m : array_like, shape (n, 3)
+            Ray origins (m), sonar frame.
         directions : array_like, shape (n, 3)
             Normalised here.
         max_distance_m : float or array_like (n,), optional
+            Farthest hit accepted (m).
         from_surface : bool
             The origins lie on a surface: start ε along the ray.
         purpose : str
             Counter name.
+
+        Returns
+        -------
+        Hits
+            One row per ray.
+
+        Raises
+        ------
+        ValueError
+            A non-finite origin or direction, or a zero direction.
         """
-        o = np.asarray(origins_m, float).reshape(-1, 3)
-        d = np.asarray(directions, float).reshape(-1, 3)
-        nrm = np.linalg.norm(d, axis=1)
-        if np.any(nrm == 0) or not np.all(np.isfinite(o)) or not np.all(np.isfinite(d)):
+        o = np.ascontiguousarray(np.asarray(origins_m, float).reshape(-1, 3))
+        d = np.ascontiguousarray(np.asarray(directions, float).reshape(-1, 3))
+        if o.shape != d.shape:
+            raise ValueError("origins_m and directions must have the same shape (n, 3)")
+        n = o.shape[0]
+        eps = self.eps_m if from_surface else 0.0
+        limit = np.array([np.inf]) if max_distance_m is None else np.ascontiguousarray(
+            np.broadcast_to(np.asarray(max_distance_m, float), (n,)))
+        face = np.empty(n, np.int32)
+        mesh = np.empty(n, np.int32)
+        t = np.empty(n)
+        point = np.empty((n, 3))
+        o32, d32 = self._scratch(n)
+        self._count(purpose, n)
+
+        def job(s):
+            if not _prepare(o[s], d[s], eps, o32[s], d32[s]):
+                return False
+            if s.stop == s.start:
+                return True
+            dists = None
+            if max_distance_m is not None:
+                # Embree stops at the limit less the start offset; float64 has the last word
+                dists = np.ascontiguousarray(np.maximum(limit[s] - eps, 0.0) * (1 + 1e-6) + self.eps_m,
+                                             np.float32)
+            ids = np.asarray(self._scene.run(o32[s], d32[s], dists=dists, query="INTERSECT"))
+            lim = limit[s] + self.eps_m if limit.shape[0] > 1 else limit + self.eps_m
+            _refine(ids.astype(np.int32, copy=False), o[s], d[s], self.face_plane,
+                    self.face_mesh, lim, face[s], mesh[s], t[s], point[s])
+            return True
+
+        if not all(self._map(job, n)):
             raise ValueError("rays need finite origins and non-zero finite directions")
-        d = d / nrm[:, None]
-        start = o + d * self.eps_m if from_surface else o
-        dists = None
-        if max_distance_m is not None:
-            tmax = np.broadcast_to(np.asarray(max_distance_m, float), (o.shape[0],))
-            dists = np.ascontiguousarray(np.maximum(tmax - (self.eps_m if from_surface else 0.0), 0.0),
-                                         dtype=np.float32)
-        self._count(purpose, o.shape[0])
-        face = np.asarray(self._run(np.ascontiguousarray(start, np.float32),
-                                    np.ascontiguousarray(d, np.float32), dists, "INTERSECT"),
-                          np.int64)
-        hit = face >= 0
-        f = np.where(hit, face, 0)
-        nf = self.face_normal[f]
-        denom = np.einsum("ij,ij->i", nf, d)
-        t = np.einsum("ij,ij->i", nf, self.face_v0[f] - o) / np.where(denom != 0, denom, 1.0)
-        t = np.where(hit, t, np.inf)
-        if dists is not None:
-            # float32 may admit a hit just beyond the limit: the float64 distance decides
-            beyond = hit & (t > np.asarray(max_distance_m, float) + self.eps_m)
-            hit &= ~beyond
-            t = np.where(hit, t, np.inf)
-        face = np.where(hit, face, -1)
-        point = np.where(hit[:, None], o + np.where(hit, t, 0.0)[:, None] * d, o)
-        return Hits(face, np.where(hit, self.face_mesh[f], -1), t, point,
-                    np.where(hit[:, None], nf, 0.0))
+        return Hits(face, mesh, t, point, self.face_normal)
+
+    def _scratch(self, n):
+        """float32 ray buffers for Embree, kept between batches (fresh pages cost as much as the
+        conversion itself)."""
+        if self._buffers is None or self._buffers[0].shape[0] < n:
+            self._buffers = (np.empty((n, 3), np.float32), np.empty((n, 3), np.float32))
+        return self._buffers[0][:n], self._buffers[1][:n]
+
+    def _map(self, job, n):
+        """Run ``job(slice)`` over contiguous chunks of n rows, one per thread."""
+        chunks = min(self.threads, max(1, n // _MIN_CHUNK))
+        if chunks <= 1:
+            return [job(slice(0, n))]
+        bounds = np.linspace(0, n, chunks + 1).astype(int)
+        parts = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+        with ThreadPoolExecutor(chunks) as pool:
+            return list(pool.map(job, parts))
 
     def occluded(self, starts_m, ends_m, *, purpose: str = "occlusion", start_on_surface=False,
                  end_on_surface=True):
