@@ -185,7 +185,7 @@ class RayScene:
         coef = np.ones(n, complex)
         cur = np.broadcast_to(start, end.shape).copy()
         remaining = image.copy()
-        for b in seq:
+        for i, b in enumerate(seq):
             nrm, d = self.planes[b]
             v = remaining - cur
             den = v @ nrm
@@ -197,7 +197,7 @@ class RayScene:
             dirs = seg / np.maximum(length, 1e-300)[:, None]
             # the bounce point must be on this boundary's mesh, first thing along the segment
             hits = self.caster.first_hit(cur, np.where(valid[:, None], dirs, [0, 0, 1.0]),
-                                         from_surface=b is not seq[0] or False, purpose="multipath")
+                                         from_surface=i > 0, purpose="multipath")
             on = hits.hit & (hits.mesh == b) & (np.abs(hits.distance - length) <= 10 * self.caster.eps_m
                                                   + 1e-9 * length)
             valid &= on

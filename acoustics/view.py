@@ -101,12 +101,12 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     x_w, y_w, z_w = pose.rotation[:, 0], pose.rotation[:, 1], pose.rotation[:, 2]
     up = np.array([0.0, 0.0, -1.0])
     if abs(y_w[2]) < 0.7:
-        view_w = y_w - 0.35 * z_w + 0.35 * up
+        view_w = y_w + 0.45 * x_w - 0.35 * z_w + 0.35 * up
     else:
         view_w = -x_w - 0.5 * z_w + 0.1 * up
     view_w = view_w / np.linalg.norm(view_w)
     plotter.camera.focal_point = focus
-    plotter.camera.position = focus + 2.6 * span * view_w
+    plotter.camera.position = focus + 2.9 * span * view_w
     plotter.camera.up = tuple(up)
     out = None
     if output is not None:

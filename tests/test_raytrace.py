@@ -259,7 +259,11 @@ def test_surface_multipath_matches_analytic_image_sources():
         assert np.abs(np.angle(amp[j] / a_an)).max() < 1e-6             # rad: the sign of R
 
 
-def test_second_order_paths_between_surface_and_floor_are_all_the_image_sources():
+@pytest.mark.parametrize("order", [2, 3])
+def test_higher_order_paths_between_surface_and_floor_are_all_the_image_sources(order):
+    """Every alternating bounce sequence up to ``order`` per leg is a path (2·order + 1)² − 1 of
+    them for two planes, each at its image source with the product of the reflection
+    coefficients; a path whose later bounce starts on a surface must leave it (ε offset)."""
     scene = text_scene("""
 name: duct
 sonar:
@@ -268,18 +272,22 @@ boundaries:
   - {name: surface, role: surface, mesh: {shape: plane, center_m: [40, 0, 0], normal: [0, 0, 1], size_m: [200, 60]}}
   - {name: floor, role: floor, mesh: {shape: plane, center_m: [40, 0, 12], normal: [0, 0, -1], size_m: [200, 60]},
      reflection: {model: constant, coefficient: 0.5}, scattering: null}
-effects: {multipath_order: 2}
+effects: {multipath_order: 3}
 """)
     setup = make_setup(scene)
     pose = setup.sonar.pose
     world = np.array([30.0, 1.0, 7.0])
     p = pose.to_sonar(world[None])[0]
-    vs = setup.ray_scene.multipath(p[None], np.ones(1), 2)
-    # per leg: (), (s), (f), (s,f), (f,s): 5 x 5 − 1 (the direct path) = 24 paths
-    assert len(vs) == 24
+    vs = setup.ray_scene.multipath(p[None], np.ones(1), order)
+    legs = [()]
+    frontier = [()]
+    for _ in range(order):
+        frontier = [q + (b,) for q in frontier for b in "sf" if not q or q[-1] != b]
+        legs += frontier
+    assert len(legs) == 2 * order + 1
+    assert len(vs) == len(legs) ** 2 - 1
     mirror = {"s": lambda q: _mirror(q, 0.0), "f": lambda q: _mirror(q, 12.0)}
     coef = {"s": -1.0, "f": 0.5}
-    legs = [(), ("s",), ("f",), ("s", "f"), ("f", "s")]
     expected = []
     for lt in legs:
         for lr in legs:
@@ -386,20 +394,24 @@ processing:
 """
 
 
-@pytest.mark.parametrize("depression_deg", [45.0, 25.0])
-def test_flat_floor_reverberation_level_is_the_lambert_integral(depression_deg):
-    """Mean image intensity over pings of a Lambert floor (μ = −20 dB, s_b = μ sin²γ) equals
-    ∫ |K(P)|² s_b(P) |B(P)|² |h(2(r − r_i)/c)|² dA over the floor, computed here independently
-    (K: source level, transmit pattern, element directivity, spreading, absorption; B: the
-    subarray's Hamming beam; h: the compressed pulse). 25 pings x 13 beams x ~3 independent range
-    cells give a standard error of ~0.1 dB on the beam average; the rays omit the transmitter's
-    lobes below −20 dB (< 0.2 dB): tolerance 0.5 dB."""
+def floor_scene(depression_deg, pings, seed=7):
+    """A sonar 15 m above a flat Lambert floor (μ = −20 dB), looking down at ``depression_deg``
+    with its fan in the vertical plane; the image spans the fan's ±7° scan on the floor."""
     dep = math.radians(depression_deg)
     r0, r1 = 15.0 / math.sin(dep + math.radians(7)), 15.0 / math.sin(dep - math.radians(7))
-    text = FLOOR.format(c=math.cos(dep), s=math.sin(dep), y0=15.0 / math.tan(dep), pings=25,
-                        r0=round(r0 - 0.5, 2), r1=round(r1 + 0.5, 2))
-    scene = text_scene(text)
-    tree = processing.image(simulate(scene))
+    return text_scene(FLOOR.format(c=math.cos(dep), s=math.sin(dep), y0=15.0 / math.tan(dep),
+                                   pings=pings, r0=round(r0 - 0.5, 2), r1=round(r1 + 0.5, 2))
+                      .replace("seed: 7", f"seed: {seed}"))
+
+
+def lambert_floor_ratio(scene, tree, depression_deg, beams=range(4, 29, 2)):
+    """Measured / expected mean image intensity of the floor, per beam.
+
+    Expected: ∫ |K(P)|² s_b(P) |B(P)|² |h(2(r − r_i)/c)|² dA over the floor, computed here
+    independently of the ray tracer (K: source level, transmit pattern, element directivity,
+    spreading, absorption; B: the subarray's Hamming beam; h: the compressed pulse), averaged over
+    the image cells within ±0.1 m of where each beam meets the floor."""
+    dep = math.radians(depression_deg)
     im = processing.images_of(tree)
     mean_i = np.mean(np.abs(im["image"][:, 0]) ** 2, axis=0)
     r_img, th = im["range_m"], im["beam_angle_rad"]
@@ -415,7 +427,7 @@ def test_flat_floor_reverberation_level_is_the_lambert_integral(depression_deg):
     w = window("hamming", 8)
     n_floor = pose.rotation.T @ np.array([0.0, 0.0, -1.0])
     ratios = []
-    for b in range(4, 29, 2):
+    for b in beams:
         y_b = 15.0 / math.tan(dep - th[b])             # the floor where beam b meets it
         x = np.linspace(-3.0, 3.0, 241)
         y = y_b + np.linspace(-0.6, 0.6, 241) / math.sin(dep - th[b])
@@ -430,14 +442,25 @@ def test_flat_floor_reverberation_level_is_the_lambert_integral(depression_deg):
         s_b = lambert_sb(np.arcsin(np.abs(u @ n_floor)), -20.0)
         K2 = (setup.model.scale_counts * setup.model.source_level * e_t * d / (r1 * r2)
               * 10 ** (-alpha * (r1 + r2) / 20)) ** 2
-        beam = np.abs(np.exp(2j * np.pi * k / (2 * np.pi) * np.outer(u[:, 0] - np.sin(th[b]), x_a))
-                      @ w / w.sum()) ** 2
+        beam = np.abs(np.exp(1j * k * np.outer(u[:, 0] - np.sin(th[b]), x_a)) @ w / w.sum()) ** 2
         base = K2 * s_b * beam * dA
         r_s = 0.5 * (r1 + r2)
         rows = np.flatnonzero(np.abs(r_img - math.hypot(y_b, 15.0)) <= 0.1)
         expect = [np.sum(base * np.interp(2 * (r_s - r_img[i]) / c, t_p, pulse, 0, 0) ** 2)
                   for i in rows]
         ratios.append(np.mean(mean_i[rows, b]) / np.mean(expect))
+    return np.array(ratios), th[list(beams)]
+
+
+@pytest.mark.parametrize("depression_deg", [45.0, 25.0])
+def test_flat_floor_reverberation_level_is_the_lambert_integral(depression_deg):
+    """Mean image intensity over pings of a Lambert floor (s_b = μ sin²γ) equals the integral
+    of :func:`lambert_floor_ratio`. 25 pings x 13 beams x ~3 independent range cells give a
+    standard error of ~0.1 dB on the beam average; the rays omit the transmitter's lobes below
+    −20 dB (< 0.2 dB): tolerance 0.5 dB."""
+    scene = floor_scene(depression_deg, 25)
+    tree = processing.image(simulate(scene))
+    ratios, _ = lambert_floor_ratio(scene, tree, depression_deg)
     assert abs(10 * np.log10(np.mean(ratios))) < 0.5
 
 
