@@ -524,6 +524,7 @@ class Scene(ConfigModel):
     processing: ProcessingSettings = ProcessingSettings()
 
     _source_path: Path | None = PrivateAttr(default=None)
+    _resolved_text: str | None = PrivateAttr(default=None)
 
     @model_validator(mode="before")
     @classmethod
@@ -568,9 +569,17 @@ class Scene(ConfigModel):
             return p
         return self._source_path.parent / p
 
+    def model_copy(self, *, update=None, deep: bool = False):
+        """A copy (with ``update``); the cached resolved text is not carried over."""
+        out = super().model_copy(update=update, deep=deep)
+        out._resolved_text = None
+        return out
+
     def resolved_text(self) -> str:
         """The fully resolved scene as YAML, every default filled in (round-trips)."""
-        return dump_yaml(self.model_dump(mode="json", by_alias=True))
+        if self._resolved_text is None:  # frozen: compute once (YAML dumping is slow)
+            self._resolved_text = dump_yaml(self.model_dump(mode="json", by_alias=True))
+        return self._resolved_text
 
     def sha256(self) -> str:
         """SHA-256 of :meth:`resolved_text` (identifies what a run really used)."""

@@ -19,7 +19,6 @@ scene without meshes never builds a ray caster, a quiet one has no ``noise`` sta
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
@@ -50,11 +49,38 @@ class Setup:
     ray_scene: object = None
 
 
-@lru_cache(maxsize=16)
+_ARRAY_CACHE: dict = {}
+
+
+def _per_geometry(name, key, compute):
+    """Results that depend only on array geometry and the medium, computed once per process
+    (keyed by the geometry's bytes: arrays rebuilt from the same scene hit the cache)."""
+    k = (name, key)
+    if k not in _ARRAY_CACHE:
+        if len(_ARRAY_CACHE) > 64:
+            _ARRAY_CACHE.clear()
+        _ARRAY_CACHE[k] = compute()
+    return _ARRAY_CACHE[k]
+
+
 def _tx_beamwidths(key, tx, c, f0):
-    m = Medium(sound_speed_m_s=c)
-    return (beamwidth(tx, plane="azimuth", medium=m, frequency_hz=f0),
-            beamwidth(tx, plane="elevation", medium=m, frequency_hz=f0))
+    def compute():
+        m = Medium(sound_speed_m_s=c)
+        return (beamwidth(tx, plane="azimuth", medium=m, frequency_hz=f0),
+                beamwidth(tx, plane="elevation", medium=m, frequency_hz=f0))
+    return _per_geometry("tx_beamwidths", (key, c, f0), compute)
+
+
+def calibration_of(setup: "Setup"):
+    """(G (counts m), azimuth grid (rad), Φ(θ) (rad)) of a run: see :mod:`acoustics.calibration`."""
+    from .calibration import calibration_gain_counts, two_way_elevation_width
+    tx = setup.sonar.transmitter
+    rx = setup.sonar.receiver.elements
+    k = setup.model.wavenumber_rad_m
+    key = (_array_key(tx), _array_key(rx), k)
+    az, width = _per_geometry("elevation_width", key, lambda: two_way_elevation_width(
+        tx, rx, wavenumber_rad_m=k))
+    return calibration_gain_counts(tx, setup.model.scale_counts), az, width
 
 
 def _array_key(arr) -> bytes:

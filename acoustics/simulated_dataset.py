@@ -83,6 +83,8 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.Da
 
     tx = sonar.transmitter
     replica = pulse.replica(s.rate_hz)
+    from .simulate import calibration_of
+    cal_gain, cal_az, cal_width = calibration_of(setup)
     sonar_ds = xr.Dataset(
         {"transmit_frequency_start": xr.DataArray(pulse.center_frequency_hz - np.sign(pulse.chirp_rate_hz_s or 1) * pulse.bandwidth_hz / 2, attrs={"units": "Hz"}),
          "transmit_frequency_stop": xr.DataArray(pulse.center_frequency_hz + np.sign(pulse.chirp_rate_hz_s or 1) * pulse.bandwidth_hz / 2, attrs={"units": "Hz"}),
@@ -101,8 +103,16 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.Da
          "tx_element_width": xr.DataArray(tx.width_m, dims="tx_element", attrs={"units": "m"}),
          "tx_element_height": xr.DataArray(tx.height_m, dims="tx_element", attrs={"units": "m"}),
          "tx_element_rotation": xr.DataArray(tx.rotation_rad, dims="tx_element", attrs={"units": "rad"}),
-         "tx_element_weight": xr.DataArray(tx.weight, dims="tx_element")},
-        coords={"channel_all": chan_names, "replica_sample": np.arange(replica.size)},
+         "tx_element_weight": xr.DataArray(tx.weight, dims="tx_element"),
+         "calibration_gain": xr.DataArray(cal_gain, attrs={
+             "units": "counts m", "long_name": "G = k S: image peak of a target of backscatter "
+             "amplitude 1 m at 1 m on the transmit axis (see acoustics/calibration.py)"}),
+         "two_way_elevation_width": xr.DataArray(cal_width, dims="calibration_azimuth", attrs={
+             "units": "rad", "long_name": "integral over elevation of |E_t|^2 |D_rx|^2 cos(elevation), "
+             "per azimuth: the sonar's part of echo integration's equivalent beam"})},
+        coords={"channel_all": chan_names, "replica_sample": np.arange(replica.size),
+                "calibration_azimuth": xr.DataArray(cal_az, dims="calibration_azimuth",
+                                                    attrs={"units": "rad"})},
         attrs={"transmit_type": "LFM", "taper": pulse.taper, "sweep": pulse.sweep,
                "sonar_model": "ABACUS" if scene.sonar.preset == "abacus" else "custom",
                "variant": scene.sonar.variant if scene.sonar.preset == "abacus" else "explicit",

@@ -128,12 +128,12 @@ def detect_all(images: dict, record, settings: DetectSettings, volume: CountingV
     notes = []
     if st.method in ("rayleigh", "cfar"):
         pfa = cell_pfa(st.pfa_image, n_cells, convention=st.convention)
-    if st.method == "rayleigh" or (st.method != "rayleigh" and st.noise.source != "image"):
+    if st.needs_noise or st.noise.source != "image":
         try:
             if not st.noise.per_ping:
                 fit = _noise_fit(mags, st, r, th, upsample, noise_magnitudes)
         except NoiseEstimateError:
-            if st.method == "rayleigh":
+            if st.needs_noise:
                 raise
     if fit is not None and not fit.rayleigh_like:
         msg = (f"the noise cells are not Rayleigh-like ({fit.describe()}): the derived threshold "
@@ -146,12 +146,14 @@ def detect_all(images: dict, record, settings: DetectSettings, volume: CountingV
     for p in range(n_ping):
         m = mags[p]
         sigma_p = fit.sigma if fit is not None else np.nan
+        if st.needs_noise and st.noise.per_ping:
+            sigma_p = _noise_fit(mags[p:p + 1], st, r, th, upsample, noise_magnitudes).sigma
         if st.method == "rayleigh":
-            if st.noise.per_ping:
-                sigma_p = _noise_fit(mags[p:p + 1], st, r, th, upsample, noise_magnitudes).sigma
             thr = rayleigh_threshold(sigma_p, pfa, convention=st.convention)
         elif st.method == "fixed":
-            thr = float(st.value)
+            mu_p = sigma_p * np.sqrt(np.pi / 2)
+            thr = float(st.value) * {"counts": 1.0, "noise_mean": mu_p,
+                                     "thesis": mu_p / st.thesis_noise_mean}[st.value_units]
         elif st.method == "fraction_of_peak":
             thr = st.fraction * float(m.max()) if m.size else np.inf
         else:

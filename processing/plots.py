@@ -166,9 +166,11 @@ def image_figures(images: dict, outdir: Path, *, ping: int = 0) -> list[Path]:
     return paths
 
 
-def count_figures(tree, outdir: Path, *, pings=(0,), max_pings: int = 5) -> list[Path]:
+def count_figures(tree, outdir: Path, *, pings=(0,), max_pings: int = 5,
+                  counts: bool = True) -> list[Path]:
     """detections_ping<k>.png (fan-beam image with detections, thesis Appendix B; and the 3-D
-    positions seen from above and from the side) and counts.png (counts and errors vs ping)."""
+    positions seen from above and from the side) and, with ``counts``, counts.png (counts and
+    errors vs ping)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -220,20 +222,23 @@ def count_figures(tree, outdir: Path, *, pings=(0,), max_pings: int = 5) -> list
         axes[1].legend(fontsize=8, loc="lower left")
         paths.append(save(fig, outdir / f"detections_ping{int(cnt['ping_index'][p])}.png"))
         plt.close(fig)
+    if not counts:
+        return paths
     fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True, constrained_layout=True)
     x = cnt["ping_index"]
     if "true_in_volume" in cnt:
         axes[0].plot(x, cnt["true_in_volume"], "k-", lw=1.2, label="true, in volume")
     axes[0].plot(x, cnt["count_before"], "-", color="tab:orange", label="detected in span (before interferometry)")
     axes[0].plot(x, cnt["count_after"], "-", color="tab:green", label="counted in volume (after)")
-    axes[0].set_ylabel("targets per ping")
+    axes[0].set_ylabel("targets per ping (count)")
+    axes[0].set_xlabel("ping index")
     axes[0].legend(fontsize=8)
     axes[0].grid(alpha=0.3)
     if "error_before" in cnt:
         axes[1].plot(x, cnt["error_before"], "-", color="tab:orange", label="before interferometry")
         axes[1].plot(x, cnt["error_after"], "-", color="tab:green", label="after interferometry")
         axes[1].axhline(0, color="k", lw=0.8)
-        axes[1].set_ylabel("count error (counted − true)")
+        axes[1].set_ylabel("count error, counted − true (targets)")
         axes[1].legend(fontsize=8)
     else:
         axes[1].plot(x, cnt["density_per_m3"], "-", color="tab:green")

@@ -98,7 +98,14 @@ class DetectSettings(ConfigModel):
     """correct: P_cell = 1 − (1 − α)^(1/N) and T = σ√(−2 ln P_cell); thesis: eq. 5.4 and 5.9 as
     printed, P_cell = 1 − α^(1/N) and T = √(−2 μ² (π/2) ln P_cell) (reproduces 9.05e-4, ~656)."""
     value: NonNegativeReal | None = None
-    """Fixed threshold (image units, ADC counts) for method: fixed."""
+    """Fixed threshold for method: fixed, in ``value_units``."""
+    value_units: Literal["counts", "noise_mean", "thesis"] = "counts"
+    """counts: image units (ADC counts); noise_mean: multiples of the estimated noise mean μ;
+    thesis: the thesis' image units, T = value x μ / thesis_noise_mean. The thesis' images are
+    not calibrated, so its thresholds (600–2000, §6.3.6) only carry over relative to its noise
+    mean; this keeps T/μ as in the thesis."""
+    thesis_noise_mean: PositiveReal = 139.8
+    """The thesis' noise mean μ in its image units (Table 6.5), for value_units: thesis."""
     fraction: Real = Field(0.15, gt=0, lt=1)
     """For method: fraction_of_peak (0.15 in §6.3, 0.10 in §6.3.3)."""
     noise: NoiseSettings = NoiseSettings()
@@ -109,8 +116,14 @@ class DetectSettings(ConfigModel):
     @model_validator(mode="after")
     def _fixed(self):
         if self.method == "fixed" and self.value is None:
-            raise ValueError("method 'fixed' needs value (a threshold in ADC counts)")
+            raise ValueError("method 'fixed' needs value (a threshold in value_units, default ADC "
+                             "counts)")
         return self
+
+    @property
+    def needs_noise(self) -> bool:
+        """Whether the threshold derives from a noise estimate."""
+        return self.method == "rayleigh" or (self.method == "fixed" and self.value_units != "counts")
 
 
 class CountSettings(ConfigModel):

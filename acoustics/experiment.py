@@ -1,0 +1,481 @@
+"""Monte Carlo experiments (thesis chapter 6): many pings, optionally a sweep of one parameter,
+every ping simulated, imaged, detected, located, counted, scored and echo-integrated — in
+parallel with Dask, resumable, and summarised in a dataset and a report.
+
+Tasks are independent: a task is one ping of one scene (for a sweep of a processing setting, one
+ping evaluated under every sweep point; for a sweep of a scene parameter, one ping of one scene
+variant). Each draws its randomness from (scene seed, ping index) only, so the results do not
+depend on the number of workers or on the order tasks finish. A finished task is written at once
+to ``DIR/parts/`` (atomically); a rerun of the same experiment skips what is there, so an
+interrupted experiment resumes where it stopped.
+
+Sweeps are ``KEY=START:STOP:STEP`` (inclusive of STOP when it falls on the grid) or
+``KEY=V1,V2,...``. KEY is a dotted path into the scene file (``noise.sigma_counts``,
+``processing.detect.pfa_image``, ``targets.populations[0].count``) or ``threshold``: a fixed
+threshold ``processing.detect.value`` in the scene's ``value_units`` (so a scene with
+``value_units: thesis`` sweeps the thesis' 600–2000 of §6.3.6).
+"""
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+import math
+import os
+import shutil
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+import yaml
+
+__all__ = ["Sweep", "parse_sweep", "ExperimentError", "run_experiment", "experiment_plan"]
+
+#: keys a sweep may name besides dotted scene paths: (path, other settings it implies)
+SWEEP_ALIASES = {"threshold": ("processing.detect.value", {"processing.detect.method": "fixed"})}
+PARTS = "parts"
+RESULTS_VERSION = 1
+
+
+class ExperimentError(ValueError):
+    """A bad sweep, a bad option, or an output folder that holds another experiment."""
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """One parameter and its values."""
+
+    key: str
+    values: tuple
+    text: str
+
+    @property
+    def path(self) -> str:
+        return SWEEP_ALIASES.get(self.key, (self.key, {}))[0]
+
+    @property
+    def implies(self) -> dict:
+        return SWEEP_ALIASES.get(self.key, (self.key, {}))[1]
+
+    @property
+    def processing_only(self) -> bool:
+        """Whether only processing changes (the pings are simulated once for all values)."""
+        return self.path.startswith("processing.")
+
+    def label(self, value) -> str:
+        return f"{self.key}={value:g}" if isinstance(value, float) else f"{self.key}={value}"
+
+
+def parse_sweep(text: str) -> Sweep:
+    """``KEY=START:STOP:STEP`` or ``KEY=V1,V2,...`` → :class:`Sweep`.
+
+    Raises
+    ------
+    ExperimentError
+        With the accepted forms.
+    """
+    form = "give KEY=START:STOP:STEP (e.g. threshold=600:2000:50) or KEY=V1,V2,... "
+    if "=" not in text:
+        raise ExperimentError(f"--sweep {text!r}: {form}")
+    key, spec = (s.strip() for s in text.split("=", 1))
+    if not key or not spec:
+        raise ExperimentError(f"--sweep {text!r}: {form}")
+    try:
+        if ":" in spec:
+            parts = [float(x) for x in spec.split(":")]
+            if len(parts) != 3:
+                raise ValueError
+            start, stop, step = parts
+            if not step > 0 or stop < start:
+                raise ExperimentError(f"--sweep {text!r}: STEP must be > 0 and STOP >= START")
+            n = int(math.floor((stop - start) / step + 1e-9)) + 1
+            if n > 10_000:
+                raise ExperimentError(f"--sweep {text!r}: {n} points; at most 10000")
+            values = tuple(round(start + i * step, 12) for i in range(n))
+        else:
+            values = tuple(_number(v.strip()) for v in spec.split(","))
+    except ExperimentError:
+        raise
+    except ValueError:
+        raise ExperimentError(f"--sweep {text!r}: {form}(numbers only)") from None
+    return Sweep(key, values, text)
+
+
+def _number(v: str):
+    f = float(v)
+    return int(f) if f.is_integer() and "." not in v and "e" not in v.lower() else f
+
+
+# ------------------------------------------------------------------- the plan
+def _split_path(path: str):
+    out = []
+    for part in path.split("."):
+        while "[" in part:
+            head, rest = part.split("[", 1)
+            if head:
+                out.append(head)
+            idx, part = rest.split("]", 1)
+            out.append(int(idx))
+        if part:
+            out.append(part)
+    return out
+
+
+def _set(data, path: str, value, *, what: str):
+    keys = _split_path(path)
+    node = data
+    for k in keys[:-1]:
+        try:
+            node = node[k]
+        except (KeyError, IndexError, TypeError):
+            raise ExperimentError(f"{what}: {path!r} is not a key of the scene "
+                                  f"(at {k!r}); see `abacus scene show` for the keys") from None
+    last = keys[-1]
+    if isinstance(node, dict) and last not in node:
+        raise ExperimentError(f"{what}: {path!r} is not a key of the scene (no {last!r}); see "
+                              f"`abacus scene show` for the keys")
+    node[last] = value
+
+
+def _variant(scene, updates: dict, what: str):
+    """The scene with ``updates`` ({dotted path: value}) applied, validated again."""
+    from .scene import SceneError, _validate
+    data = yaml.safe_load(scene.resolved_text())
+    for path, value in updates.items():
+        _set(data, path, value, what=what)
+    try:
+        out = _validate(data, file=f"{scene.source_path or '<scene>'} ({what})", marks={})
+    except SceneError as exc:
+        raise ExperimentError(str(exc)) from None
+    out._source_path = scene.source_path
+    return out
+
+
+@dataclass
+class Point:
+    """One setting of the experiment: its label, sweep value, scene and processing settings."""
+
+    label: str
+    value: float
+    scene: object
+    settings: object
+
+
+def experiment_plan(scene, sweep: Sweep | None):
+    """The settings of an experiment: the scene as written, then one per sweep value."""
+    points = [Point("scene", float("nan"), scene, scene.processing)]
+    if sweep is None:
+        return points
+    for v in sweep.values:
+        updates = {**sweep.implies, sweep.path: v}
+        var = _variant(scene, updates, f"--sweep {sweep.text}")
+        points.append(Point(sweep.label(v), float(v), var, var.processing))
+    return points
+
+
+def _tasks(points, pings, sweep):
+    """(task id, scene point index, ping, setting indices) — one per simulated ping."""
+    if sweep is None or sweep.processing_only:
+        return [(f"ping{p:06d}", 0, p, list(range(len(points)))) for p in pings]
+    return [(f"point{j:03d}_ping{p:06d}", j, p, [j]) for j in range(len(points)) for p in pings]
+
+
+# ------------------------------------------------------------------ one task
+_WORKER_CACHE: dict = {}
+
+
+def _scene_in_worker(text: str, source: str | None):
+    from .scene import _validate
+    key = hashlib.sha256((text + str(source)).encode()).hexdigest()
+    if key not in _WORKER_CACHE:
+        sc = _validate(yaml.safe_load(text), file=source or "<scene>", marks={})
+        sc._source_path = Path(source) if source else None
+        _WORKER_CACHE.clear()
+        _WORKER_CACHE[key] = sc
+    return _WORKER_CACHE[key]
+
+
+def run_task(payload: dict) -> dict:
+    """Simulate one ping and evaluate it under the task's settings (runs on a worker).
+
+    Returns plain numpy arrays and bytes only, so that any Dask worker can send it back.
+    """
+    import warnings
+
+    import numba
+
+    from processing.evaluate import evaluate
+    from processing.settings import ProcessingSettings
+
+    from .scene import SceneWarning
+    from .simulate import simulate
+    t0 = time.perf_counter()
+    numba.set_num_threads(max(1, min(payload.get("threads", 1), numba.config.NUMBA_NUM_THREADS)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SceneWarning)
+        scene = _scene_in_worker(payload["scene_text"], payload["source"])
+    settings = [ProcessingSettings.model_validate_json(s) for s in payload["settings"]]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        tree = simulate(scene, pings=[payload["ping"]])
+        ev = evaluate(tree, settings)
+        figure = _figure_bytes(tree, settings[0], payload["ping"]) if payload.get("figure") else b""
+    notes = list(ev["notes"]) + sorted({str(w.message).split(":")[0][:200] for w in caught
+                                        if not issubclass(w.category, SceneWarning)})
+    prov = tree["Provenance"].ds
+    return {"id": payload["id"], "per_ping": {k: v[:, 0] for k, v in ev["per_ping"].items()},
+            "noise_histogram": ev["noise_histogram"][0], "figure": figure,
+            "seconds": time.perf_counter() - t0,
+            "stage_seconds": dict(zip(prov["stage"].values.tolist(),
+                                      prov["stage_seconds"].values.tolist())),
+            "notes": notes}
+
+
+def _figure_bytes(tree, settings, ping) -> bytes:
+    """The fan-beam image of the ping with its detections (thesis Appendix B), as PNG bytes."""
+    import processing
+    from processing.plots import count_figures
+    counted = processing.count(tree, settings)
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = count_figures(counted, tmp, pings=(0,), counts=False)
+        return Path(paths[0]).read_bytes()
+
+
+# ------------------------------------------------------------------ parts on disk
+def _write_atomic(path: Path, data: bytes):
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_bytes(data)
+    tmp.replace(path)
+
+
+def _save_part(parts: Path, res: dict):
+    buf = io.BytesIO()
+    arrays = {f"pp_{k}": v for k, v in res["per_ping"].items()}
+    np.savez(buf, noise_histogram=res["noise_histogram"], seconds=res["seconds"],
+             stage_seconds=json.dumps(res["stage_seconds"]), notes=json.dumps(res["notes"]),
+             figure=np.frombuffer(res["figure"], np.uint8), **arrays)
+    _write_atomic(parts / f"{res['id']}.npz", buf.getvalue())
+
+
+def _load_part(path: Path) -> dict:
+    with np.load(path) as z:
+        return {"per_ping": {k[3:]: z[k] for k in z.files if k.startswith("pp_")},
+                "noise_histogram": z["noise_histogram"], "seconds": float(z["seconds"]),
+                "stage_seconds": json.loads(str(z["stage_seconds"])),
+                "notes": json.loads(str(z["notes"])), "figure": z["figure"].tobytes()}
+
+
+def _manifest(points, sweep) -> dict:
+    return {"version": RESULTS_VERSION,
+            "scene_sha256": [p.scene.sha256() for p in points],
+            "settings": [p.settings.model_dump_json(by_alias=True) for p in points],
+            "sweep": sweep.text if sweep else None}
+
+
+def _check_manifest(out: Path, man: dict, restart: bool):
+    path = out / "experiment.json"
+    parts = out / PARTS
+    if restart and parts.exists():
+        shutil.rmtree(parts)
+    if path.exists() and parts.exists():
+        old = json.loads(path.read_text())
+        if {k: old.get(k) for k in man} != man:
+            raise ExperimentError(
+                f"{out} holds the parts of another experiment (different scene, settings or "
+                f"sweep): choose another -o, or --restart to discard them")
+    parts.mkdir(parents=True, exist_ok=True)
+    _write_atomic(path, json.dumps(man, indent=1).encode())
+
+
+# ------------------------------------------------------------------ running
+def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, workers: int | None = None,
+                   scheduler: str | None = None, figure_pings: int = 2, fmt: str = "netcdf",
+                   restart: bool = False, progress=None, report: bool = True) -> Path:
+    """Run (or resume) an experiment and write its dataset and report.
+
+    Parameters
+    ----------
+    scene : Scene
+    out_dir : str or Path
+        Output folder: ``results.nc`` (or ``.zarr``), ``report.html``, ``figures/``, ``parts/``.
+    pings : iterable of int, optional
+        Default the scene's pings.
+    sweep : Sweep, optional
+    workers : int, optional
+        Local Dask workers (processes, one thread each); default every core; 0 runs in this
+        process without Dask.
+    scheduler : str, optional
+        Address of an existing Dask scheduler (its workers need abacus installed).
+    figure_pings : int
+        How many of the first pings get a fan-beam figure with detections.
+    fmt : {"netcdf", "zarr"}
+    restart : bool
+        Discard the parts of an earlier run in ``out_dir``.
+    progress : callable(done, total), optional
+
+    Returns
+    -------
+    Path
+        The results dataset.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    pings = list(range(scene.pings.first, scene.pings.first + scene.pings.count)) if pings is None else list(pings)
+    if not pings:
+        raise ExperimentError("an experiment needs at least one ping")
+    if fmt not in ("netcdf", "zarr"):
+        raise ExperimentError(f"format must be netcdf or zarr, got {fmt!r}")
+    points = experiment_plan(scene, sweep)
+    _check_manifest(out, _manifest(points, sweep), restart)
+    parts = out / PARTS
+    tasks = _tasks(points, pings, sweep)
+    todo = [t for t in tasks if not (parts / f"{t[0]}.npz").exists()]
+    texts = {j: p.scene.resolved_text() for j, p in enumerate(points)}
+    source = str(scene.source_path) if scene.source_path else None
+    n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
+    if n_workers < 0:
+        raise ExperimentError(f"--workers must be >= 0, got {workers}")
+    threads = 1 if (n_workers > 1 or scheduler) else (os.cpu_count() or 1)
+    figs = set(pings[:max(0, figure_pings)])
+    payloads = [{"id": tid, "scene_text": texts[j], "source": source, "ping": p, "threads": threads,
+                 "settings": [points[i].settings.model_dump_json(by_alias=True) for i in idx],
+                 "figure": j == 0 and p in figs} for tid, j, p, idx in todo]
+    t_start = time.perf_counter()
+    done = len(tasks) - len(todo)
+    if progress:
+        progress(done, len(tasks))
+    for res in _execute(payloads, n_workers, scheduler):
+        _save_part(parts, res)
+        done += 1
+        if progress:
+            progress(done, len(tasks))
+    wall = time.perf_counter() - t_start
+    ds = _assemble(points, pings, sweep, tasks, parts, scene,
+                   {"wall_seconds": wall, "workers": n_workers if not scheduler else -1,
+                    "scheduler": scheduler or ("local" if n_workers else "in-process"),
+                    "tasks_run": len(todo), "tasks_resumed": len(tasks) - len(todo)})
+    figdir = out / "figures"
+    figdir.mkdir(exist_ok=True)
+    for tid, j, p, _ in tasks:
+        if j == 0 and p in figs:
+            fig = _load_part(parts / f"{tid}.npz")["figure"]
+            if fig:
+                _write_atomic(figdir / f"detections_ping{p}.png", fig)
+    path = out / ("results.zarr" if fmt == "zarr" else "results.nc")
+    _write_results(ds, path, fmt)
+    if report:
+        from processing.report import write_report
+        write_report(ds, out)
+    return path
+
+
+def _execute(payloads, n_workers, scheduler):
+    """Yield task results as they finish (in-process, a local cluster, or a scheduler)."""
+    if not payloads:
+        return
+    if not scheduler and n_workers == 0:
+        for p in payloads:
+            yield run_task(p)
+        return
+    import logging
+
+    from dask.distributed import Client, LocalCluster, as_completed
+    logging.getLogger("distributed").setLevel(logging.ERROR)
+    cluster = None
+    if scheduler:
+        client = Client(scheduler)
+    else:
+        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR)
+        client = Client(cluster)
+    try:
+        futures = [client.submit(run_task, p, key=f"abacus-{p['id']}-{hashlib.sha1(p['scene_text'].encode()).hexdigest()[:8]}",
+                                 pure=False) for p in payloads]
+        for fut in as_completed(futures):
+            yield fut.result()
+            fut.release()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _assemble(points, pings, sweep, tasks, parts: Path, scene, timing: dict) -> xr.Dataset:
+    from processing.evaluate import NOISE_BINS, PER_PING_KEYS
+    n_set, n_p = len(points), len(pings)
+    col = {p: i for i, p in enumerate(pings)}
+    data = {k: np.full((n_set, n_p), np.nan) for k in PER_PING_KEYS}
+    hist = np.zeros((n_p, NOISE_BINS.size - 1))
+    seconds = np.zeros(n_p)
+    stages: dict = {}
+    notes: set = set()
+    for tid, j, p, idx in tasks:
+        part = _load_part(parts / f"{tid}.npz")
+        for k in PER_PING_KEYS:
+            data[k][idx, col[p]] = part["per_ping"][k]
+        if j == 0:
+            hist[col[p]] = part["noise_histogram"]
+        seconds[col[p]] += part["seconds"]
+        for s, t in part["stage_seconds"].items():
+            stages[s] = stages.get(s, 0.0) + t
+        notes.update(part["notes"])
+    ds = xr.Dataset(
+        {k: xr.DataArray(v, dims=("setting", "ping")) for k, v in data.items()},
+        coords={"setting": np.arange(n_set),
+                "setting_label": ("setting", np.array([p.label for p in points], dtype=str)),
+                "sweep_value": ("setting", np.array([p.value for p in points], float)),
+                "ping": np.asarray(pings, np.int64),
+                "noise_bin_edge": ("noise_bin_edge", NOISE_BINS)})
+    ds["noise_histogram"] = xr.DataArray(hist, dims=("ping", "noise_bin"), attrs={
+        "long_name": "counts of |I| / sigma_hat over the noise cells, per ping (setting 0)",
+        "bin_edges": "noise_bin_edge"})
+    ds["task_seconds"] = xr.DataArray(seconds, dims="ping", attrs={"units": "s"})
+    units = {"density_per_m3": "m^-3", "true_density_per_m3": "m^-3", "threshold_counts": "ADC counts",
+             "noise_sigma_counts": "ADC counts", "s_v_per_m": "m^-1", "sigma_bs_m2": "m^2",
+             "true_sigma_bs_m2": "m^2"}
+    for k, u in units.items():
+        ds[k].attrs["units"] = u
+    # per setting: the chapter-6 summaries
+    for k in ("error_before", "error_after", "count_before", "count_after", "true_in_volume",
+              "density_per_m3", "true_density_per_m3", "threshold_counts"):
+        ds[f"{k}_mean"] = ds[k].mean("ping")
+        ds[f"{k}_std"] = ds[k].std("ping")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sv, dens = ds["s_v_per_m"].sum("ping", skipna=True), ds["density_per_m3"].sum("ping")
+        ds["ts_estimate_db"] = 10 * np.log10(xr.where(dens > 0, sv / dens, np.nan).where(sv > 0))
+        ds["ts_true_db"] = 10 * np.log10(ds["true_sigma_bs_m2"].mean("ping", skipna=True))
+    ds["ts_estimate_db"].attrs = {"units": "dB re 1 m^2",
+                                  "long_name": "10 log10(sum s_v / sum counted density) over the pings"}
+    ds["ts_true_db"].attrs = {"units": "dB re 1 m^2",
+                              "long_name": "10 log10 of the mean sigma_bs of the true targets in the volume"}
+    ds.attrs.update({
+        "title": f"abacus experiment: {scene.name}", "results_version": RESULTS_VERSION,
+        "scene_text": scene.resolved_text(), "scene_sha256": scene.sha256(),
+        "scene_file": str(scene.source_path or ""), "sweep": sweep.text if sweep else "",
+        "sweep_key": sweep.key if sweep else "", "sweep_path": sweep.path if sweep else "",
+        "sweep_processing_only": int(sweep.processing_only) if sweep else 1,
+        "settings_json": json.dumps([json.loads(p.settings.model_dump_json(by_alias=True)) for p in points]),
+        "stage_seconds_json": json.dumps(stages), "notes": "; ".join(sorted(notes)),
+        **{k: v for k, v in timing.items()}})
+    return ds
+
+
+def _write_results(ds: xr.Dataset, path: Path, fmt: str):
+    """Atomically, chunked by ping."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    if tmp.exists():
+        shutil.rmtree(tmp) if tmp.is_dir() else tmp.unlink()
+    if fmt == "zarr":
+        enc = {k: {"chunks": tuple(1 if d == "ping" else ds.sizes[d] for d in v.dims)}
+               for k, v in ds.data_vars.items() if "ping" in v.dims}
+        ds.to_zarr(tmp, mode="w", encoding=enc, zarr_format=2, consolidated=True)
+    else:
+        enc = {k: {"chunksizes": tuple(1 if d == "ping" else ds.sizes[d] for d in v.dims)}
+               for k, v in ds.data_vars.items() if "ping" in v.dims}
+        ds.to_netcdf(tmp, engine="netcdf4", encoding=enc)
+    if path.exists():
+        shutil.rmtree(path) if path.is_dir() else path.unlink()
+    tmp.replace(path)
