@@ -223,8 +223,9 @@ def run_task(payload: dict) -> dict:
         tree = simulate(scene, pings=[payload["ping"]])
         ev = evaluate(tree, settings)
         figure = _figure_bytes(tree, settings[0], payload["ping"]) if payload.get("figure") else b""
-    notes = list(ev["notes"]) + sorted({str(w.message).split(":")[0][:200] for w in caught
-                                        if not issubclass(w.category, SceneWarning)})
+    # one line per kind of warning (the numbers in a message differ from ping to ping)
+    notes = sorted({n.split("(")[0].strip()[:200] for n in list(ev["notes"])
+                    + [str(w.message) for w in caught if not issubclass(w.category, SceneWarning)]})
     prov = tree["Provenance"].ds
     return {"id": payload["id"], "per_ping": {k: v[:, 0] for k, v in ev["per_ping"].items()},
             "noise_histogram": ev["noise_histogram"][0], "figure": figure,
@@ -411,7 +412,7 @@ def _assemble(points, pings, sweep, tasks, parts: Path, scene, timing: dict) -> 
     hist = np.zeros((n_p, NOISE_BINS.size - 1))
     seconds = np.zeros(n_p)
     stages: dict = {}
-    notes: set = set()
+    notes: dict = {}
     for tid, j, p, idx in tasks:
         part = _load_part(parts / f"{tid}.npz")
         for k in PER_PING_KEYS:
@@ -421,7 +422,8 @@ def _assemble(points, pings, sweep, tasks, parts: Path, scene, timing: dict) -> 
         seconds[col[p]] += part["seconds"]
         for s, t in part["stage_seconds"].items():
             stages[s] = stages.get(s, 0.0) + t
-        notes.update(part["notes"])
+        for n in part["notes"]:
+            notes[n] = notes.get(n, 0) + 1
     ds = xr.Dataset(
         {k: xr.DataArray(v, dims=("setting", "ping")) for k, v in data.items()},
         coords={"setting": np.arange(n_set),
@@ -458,7 +460,8 @@ def _assemble(points, pings, sweep, tasks, parts: Path, scene, timing: dict) -> 
         "sweep_key": sweep.key if sweep else "", "sweep_path": sweep.path if sweep else "",
         "sweep_processing_only": int(sweep.processing_only) if sweep else 1,
         "settings_json": json.dumps([json.loads(p.settings.model_dump_json(by_alias=True)) for p in points]),
-        "stage_seconds_json": json.dumps(stages), "notes": "; ".join(sorted(notes)),
+        "stage_seconds_json": json.dumps(stages),
+        "notes": "; ".join(f"{n} ({c} task{'s' if c > 1 else ''})" for n, c in sorted(notes.items())),
         **{k: v for k, v in timing.items()}})
     return ds
 

@@ -233,5 +233,58 @@ def rays():
               "not the caster, bounds the two-thread speed-up.")
 
 
+@section
+def experiment():
+    """Pings per second of `abacus experiment` vs workers, and the arithmetic for a cluster."""
+    import os
+    import shutil
+    import tempfile
+    import warnings
+    from pathlib import Path
+
+    import xarray as xr
+
+    from acoustics import SceneWarning, load_scene
+    from acoustics.experiment import parse_sweep, run_experiment
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SceneWarning)
+        scene = load_scene(ROOT / "scenes" / "default.yaml")
+    pings = 60
+    rows, per_task = [], None
+    for workers in (0, 1, 2):
+        tmp = Path(tempfile.mkdtemp(prefix="abacus-scaling-"))
+        import time
+        t0 = time.perf_counter()
+        path = run_experiment(scene, tmp, pings=range(pings), sweep=parse_sweep("threshold=600:2000:50"),
+                              workers=workers, figure_pings=0, report=False)
+        wall = time.perf_counter() - t0
+        with xr.open_dataset(path) as ds:
+            task_s = float(ds["task_seconds"].sum())
+            inner = float(ds.attrs["wall_seconds"])
+        shutil.rmtree(tmp)
+        per_task = task_s / pings if workers == 0 else per_task
+        rows.append([{0: "0 (in process, no Dask)", 1: "1", 2: "2"}[workers], f"{wall:.1f}",
+                     f"{inner:.1f}", f"{pings / wall:.2f}", f"{pings / inner:.2f}",
+                     f"{task_s / pings:.3f}"])
+    cluster = [[str(w), f"{w / per_task:.0f}", f"{100_000 * per_task / w / 60:.0f}"]
+               for w in (16, 64, 256)]
+    return ("## Experiments: pings per second vs workers\n\n"
+            f"`abacus experiment scenes/default.yaml --sweep threshold=600:2000:50` on {pings} pings "
+            f"(each ping simulated once and evaluated under 30 settings), {os.cpu_count()} cores. "
+            "*Total*: the whole call, including starting the local Dask cluster (a few seconds) and "
+            "writing the results; *tasks*: from the first task submitted to the last result "
+            "saved.\n\n"
+            + table(["workers", "total (s)", "tasks (s)", "pings/s, total", "pings/s, tasks",
+                     "CPU s per ping (sum over tasks)"], rows)
+            + "\n\n**For a cluster** (`--scheduler tcp://host:8786`, workers with abacus installed): "
+              f"a task costs ~{per_task:.2f} CPU-seconds here and returns a few kB, so the "
+              "scheduler (~1 ms per task) and the network are not the limit; throughput is workers / "
+              f"{per_task:.2f} s until the client that saves the parts (one small file per ping) "
+              "becomes one — thousands of pings per second. 100 000 pings of this experiment:\n\n"
+            + table(["workers", "pings/s", "minutes for 10⁵ pings"], cluster)
+            + "\n\nOn this 2-core machine two workers give less than 2x: the machine is shared "
+              "and each worker's FFTs and compiled kernels already use spare cores when alone.")
+
+
 if __name__ == "__main__":
     REPORT.main()
