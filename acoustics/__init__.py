@@ -1,24 +1,65 @@
 """abacus.acoustics — the forward problem: a scene becomes per-element complex echoes.
 
-Public surface (docs/conventions.md for frames, units and signs)::
+The stages, one sub-package each (docs/architecture.md)::
+
+    scene/       scene files: schema, loading, checks          -> Scene
+    sonar/       the ABACUS preset, arrays, directivity, beams, pulse, calibration
+    targets/     point targets per ping (explicit points, populations)
+    paths/       Embree ray casting: occlusion, multipath, reverberation, mesh targets
+    synthesis/   arrivals -> per-element complex baseband samples, noise, ADC
+    simulation/  the run: setup, one ping, the dataset it becomes
+    experiment   Monte Carlo over pings and sweeps (Dask)
+    cli/         the ``abacus`` command
+
+Public surface (docs/api.md; imported on first use, so ``import acoustics`` is cheap)::
 
     load_scene(path) -> Scene                  # raises SceneError
+    simulate(scene, *, pings=None, seed=None) -> xarray.DataTree
     beamwidth(array, *, plane, level_db=-3.0, medium=None) -> float (rad)
-    array_pattern, element_directivity, array_response
-    Medium, ElementArray, abacus_transmitter, abacus_receiver, build_sonar
+    Medium, ElementArray, abacus_transmitter, abacus_receiver, build_sonar, ...
 """
-from .arrays import ElementArray, Receiver, abacus_receiver, abacus_transmitter
-from .beams import beamwidth, pattern_cut, peak_sidelobe_db, summarize_beam
-from .directivity import array_pattern, array_response, element_directivity
-from .frames import Pose, cartesian_to_spherical, spherical_to_cartesian
-from .medium import Medium, francois_garrison_db_per_m
-from .scene import Scene, SceneError, SceneWarning, load_scene
-from .sonar import Sonar, build_sonar
+from __future__ import annotations
 
-__version__ = "0.1.0"
+import importlib
 
-__all__ = ["load_scene", "Scene", "SceneError", "SceneWarning", "beamwidth", "pattern_cut",
-           "peak_sidelobe_db", "summarize_beam", "array_pattern", "array_response",
-           "element_directivity", "Medium", "francois_garrison_db_per_m", "ElementArray",
-           "Receiver", "abacus_transmitter", "abacus_receiver", "Sonar", "build_sonar", "Pose",
-           "spherical_to_cartesian", "cartesian_to_spherical", "__version__"]
+try:
+    from importlib.metadata import PackageNotFoundError, version as _dist_version
+    __version__ = _dist_version("abacus")
+except PackageNotFoundError:  # pragma: no cover - running from a source tree
+    __version__ = "0+unknown"
+
+#: public name -> module that defines it
+_API = {
+    "load_scene": "acoustics.scene.load", "scene_from_text": "acoustics.scene.load",
+    "Scene": "acoustics.scene.schema", "SceneError": "acoustics.scene.errors",
+    "SceneWarning": "acoustics.scene.errors",
+    "simulate": "acoustics.simulation.run",
+    "run_experiment": "acoustics.experiment",
+    "beamwidth": "acoustics.sonar.beams", "pattern_cut": "acoustics.sonar.beams",
+    "peak_sidelobe_db": "acoustics.sonar.beams", "summarize_beam": "acoustics.sonar.beams",
+    "array_pattern": "acoustics.sonar.directivity", "array_response": "acoustics.sonar.directivity",
+    "element_directivity": "acoustics.sonar.directivity",
+    "ElementArray": "acoustics.sonar.arrays", "Receiver": "acoustics.sonar.arrays",
+    "abacus_transmitter": "acoustics.sonar.arrays", "abacus_receiver": "acoustics.sonar.arrays",
+    "Sonar": "acoustics.sonar.build", "build_sonar": "acoustics.sonar.build",
+    "Pulse": "acoustics.sonar.pulse",
+    "Medium": "acoustics.medium", "francois_garrison_db_per_m": "acoustics.medium",
+    "mackenzie_sound_speed_m_s": "acoustics.medium",
+    "Pose": "acoustics.frames", "spherical_to_cartesian": "acoustics.frames",
+    "cartesian_to_spherical": "acoustics.frames",
+}
+
+__all__ = sorted(_API) + ["__version__"]
+
+
+def __getattr__(name):
+    module = _API.get(name)
+    if module is None:
+        raise AttributeError(f"module 'acoustics' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return __all__

@@ -18,7 +18,6 @@ threshold ``processing.detect.value`` in the scene's ``value_units`` (so a scene
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import math
 import os
@@ -28,9 +27,9 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-import xarray as xr
-import yaml
+from processing.atomic import write_bytes_atomic, write_text_atomic
+from processing.dataset import write_dataset
+from processing.results import assemble_results, load_part, save_part
 
 __all__ = ["Sweep", "parse_sweep", "ExperimentError", "run_experiment", "experiment_plan"]
 
@@ -110,48 +109,13 @@ def _number(v: str):
 
 
 # ------------------------------------------------------------------- the plan
-def _split_path(path: str):
-    out = []
-    for part in path.split("."):
-        while "[" in part:
-            head, rest = part.split("[", 1)
-            if head:
-                out.append(head)
-            idx, part = rest.split("]", 1)
-            out.append(int(idx))
-        if part:
-            out.append(part)
-    return out
-
-
-def _set(data, path: str, value, *, what: str):
-    keys = _split_path(path)
-    node = data
-    for k in keys[:-1]:
-        try:
-            node = node[k]
-        except (KeyError, IndexError, TypeError):
-            raise ExperimentError(f"{what}: {path!r} is not a key of the scene "
-                                  f"(at {k!r}); see `abacus scene show` for the keys") from None
-    last = keys[-1]
-    if isinstance(node, dict) and last not in node:
-        raise ExperimentError(f"{what}: {path!r} is not a key of the scene (no {last!r}); see "
-                              f"`abacus scene show` for the keys")
-    node[last] = value
-
-
 def _variant(scene, updates: dict, what: str):
     """The scene with ``updates`` ({dotted path: value}) applied, validated again."""
-    from .scene import SceneError, _validate
-    data = yaml.safe_load(scene.resolved_text())
-    for path, value in updates.items():
-        _set(data, path, value, what=what)
+    from acoustics.scene import SceneError
     try:
-        out = _validate(data, file=f"{scene.source_path or '<scene>'} ({what})", marks={})
+        return scene.with_updates(updates, what=what)
     except SceneError as exc:
         raise ExperimentError(str(exc)) from None
-    out._source_path = scene.source_path
-    return out
 
 
 @dataclass
@@ -188,11 +152,10 @@ _WORKER_CACHE: dict = {}
 
 
 def _scene_in_worker(text: str, source: str | None):
-    from .scene import _validate
+    from acoustics.scene import scene_from_resolved_text
     key = hashlib.sha256((text + str(source)).encode()).hexdigest()
     if key not in _WORKER_CACHE:
-        sc = _validate(yaml.safe_load(text), file=source or "<scene>", marks={})
-        sc._source_path = Path(source) if source else None
+        sc = scene_from_resolved_text(text, source_path=source)
         _WORKER_CACHE.clear()
         _WORKER_CACHE[key] = sc
     return _WORKER_CACHE[key]
@@ -210,8 +173,8 @@ def run_task(payload: dict) -> dict:
     from processing.evaluate import evaluate
     from processing.settings import ProcessingSettings
 
-    from .scene import SceneWarning
-    from .simulate import simulate
+    from acoustics.scene import SceneWarning
+    from acoustics.simulation.run import simulate
     t0 = time.perf_counter()
     numba.set_num_threads(max(1, min(payload.get("threads", 1), numba.config.NUMBA_NUM_THREADS)))
     with warnings.catch_warnings():
@@ -245,30 +208,6 @@ def _figure_bytes(tree, settings, ping) -> bytes:
         return Path(paths[0]).read_bytes()
 
 
-# ------------------------------------------------------------------ parts on disk
-def _write_atomic(path: Path, data: bytes):
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_bytes(data)
-    tmp.replace(path)
-
-
-def _save_part(parts: Path, res: dict):
-    buf = io.BytesIO()
-    arrays = {f"pp_{k}": v for k, v in res["per_ping"].items()}
-    np.savez(buf, noise_histogram=res["noise_histogram"], seconds=res["seconds"],
-             stage_seconds=json.dumps(res["stage_seconds"]), notes=json.dumps(res["notes"]),
-             figure=np.frombuffer(res["figure"], np.uint8), **arrays)
-    _write_atomic(parts / f"{res['id']}.npz", buf.getvalue())
-
-
-def _load_part(path: Path) -> dict:
-    with np.load(path) as z:
-        return {"per_ping": {k[3:]: z[k] for k in z.files if k.startswith("pp_")},
-                "noise_histogram": z["noise_histogram"], "seconds": float(z["seconds"]),
-                "stage_seconds": json.loads(str(z["stage_seconds"])),
-                "notes": json.loads(str(z["notes"])), "figure": z["figure"].tobytes()}
-
-
 def _manifest(points, sweep) -> dict:
     return {"version": RESULTS_VERSION,
             "scene_sha256": [p.scene.sha256() for p in points],
@@ -288,7 +227,7 @@ def _check_manifest(out: Path, man: dict, restart: bool):
                 f"{out} holds the parts of another experiment (different scene, settings or "
                 f"sweep): choose another -o, or --restart to discard them")
     parts.mkdir(parents=True, exist_ok=True)
-    _write_atomic(path, json.dumps(man, indent=1).encode())
+    write_text_atomic(path, json.dumps(man, indent=1))
 
 
 # ------------------------------------------------------------------ running
@@ -349,24 +288,32 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
     if progress:
         progress(done, len(tasks))
     for res in _execute(payloads, n_workers, scheduler):
-        _save_part(parts, res)
+        save_part(parts, res)
         done += 1
         if progress:
             progress(done, len(tasks))
     wall = time.perf_counter() - t_start
-    ds = _assemble(points, pings, sweep, tasks, parts, scene,
-                   {"wall_seconds": wall, "workers": n_workers if not scheduler else -1,
-                    "scheduler": scheduler or ("local" if n_workers else "in-process"),
-                    "tasks_run": len(todo), "tasks_resumed": len(tasks) - len(todo)})
+    attrs = {
+        "title": f"abacus experiment: {scene.name}", "results_version": RESULTS_VERSION,
+        "scene_text": scene.resolved_text(), "scene_sha256": scene.sha256(),
+        "scene_file": str(scene.source_path or ""), "sweep": sweep.text if sweep else "",
+        "sweep_key": sweep.key if sweep else "", "sweep_path": sweep.path if sweep else "",
+        "sweep_processing_only": int(sweep.processing_only) if sweep else 1,
+        "settings_json": json.dumps([json.loads(p.settings.model_dump_json(by_alias=True)) for p in points]),
+        "wall_seconds": wall, "workers": n_workers if not scheduler else -1,
+        "scheduler": scheduler or ("local" if n_workers else "in-process"),
+        "tasks_run": len(todo), "tasks_resumed": len(tasks) - len(todo)}
+    ds = assemble_results(labels=[p.label for p in points], values=[p.value for p in points],
+                          pings=pings, tasks=tasks, parts=parts, attrs=attrs)
     figdir = out / "figures"
     figdir.mkdir(exist_ok=True)
     for tid, j, p, _ in tasks:
         if j == 0 and p in figs:
-            fig = _load_part(parts / f"{tid}.npz")["figure"]
+            fig = load_part(parts / f"{tid}.npz")["figure"]
             if fig:
-                _write_atomic(figdir / f"detections_ping{p}.png", fig)
+                write_bytes_atomic(figdir / f"detections_ping{p}.png", fig)
     path = out / ("results.zarr" if fmt == "zarr" else "results.nc")
-    _write_results(ds, path, fmt)
+    write_dataset(ds, path, fmt=fmt, chunk_dim="ping")
     if report:
         from processing.report import write_report
         write_report(ds, out)
@@ -402,83 +349,3 @@ def _execute(payloads, n_workers, scheduler):
         client.close()
         if cluster is not None:
             cluster.close()
-
-
-def _assemble(points, pings, sweep, tasks, parts: Path, scene, timing: dict) -> xr.Dataset:
-    from processing.evaluate import NOISE_BINS, PER_PING_KEYS
-    n_set, n_p = len(points), len(pings)
-    col = {p: i for i, p in enumerate(pings)}
-    data = {k: np.full((n_set, n_p), np.nan) for k in PER_PING_KEYS}
-    hist = np.zeros((n_p, NOISE_BINS.size - 1))
-    seconds = np.zeros(n_p)
-    stages: dict = {}
-    notes: dict = {}
-    for tid, j, p, idx in tasks:
-        part = _load_part(parts / f"{tid}.npz")
-        for k in PER_PING_KEYS:
-            data[k][idx, col[p]] = part["per_ping"][k]
-        if j == 0:
-            hist[col[p]] = part["noise_histogram"]
-        seconds[col[p]] += part["seconds"]
-        for s, t in part["stage_seconds"].items():
-            stages[s] = stages.get(s, 0.0) + t
-        for n in part["notes"]:
-            notes[n] = notes.get(n, 0) + 1
-    ds = xr.Dataset(
-        {k: xr.DataArray(v, dims=("setting", "ping")) for k, v in data.items()},
-        coords={"setting": np.arange(n_set),
-                "setting_label": ("setting", np.array([p.label for p in points], dtype=str)),
-                "sweep_value": ("setting", np.array([p.value for p in points], float)),
-                "ping": np.asarray(pings, np.int64),
-                "noise_bin_edge": ("noise_bin_edge", NOISE_BINS)})
-    ds["noise_histogram"] = xr.DataArray(hist, dims=("ping", "noise_bin"), attrs={
-        "long_name": "counts of |I| / sigma_hat over the noise cells, per ping (setting 0)",
-        "bin_edges": "noise_bin_edge"})
-    ds["task_seconds"] = xr.DataArray(seconds, dims="ping", attrs={"units": "s"})
-    units = {"density_per_m3": "m^-3", "true_density_per_m3": "m^-3", "threshold_counts": "ADC counts",
-             "noise_sigma_counts": "ADC counts", "s_v_per_m": "m^-1", "sigma_bs_m2": "m^2",
-             "true_sigma_bs_m2": "m^2"}
-    for k, u in units.items():
-        ds[k].attrs["units"] = u
-    # per setting: the chapter-6 summaries
-    for k in ("error_before", "error_after", "count_before", "count_after", "true_in_volume",
-              "density_per_m3", "true_density_per_m3", "threshold_counts"):
-        ds[f"{k}_mean"] = ds[k].mean("ping")
-        ds[f"{k}_std"] = ds[k].std("ping")
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sv, dens = ds["s_v_per_m"].sum("ping", skipna=True), ds["density_per_m3"].sum("ping")
-        ds["ts_estimate_db"] = 10 * np.log10(xr.where(dens > 0, sv / dens, np.nan).where(sv > 0))
-        ds["ts_true_db"] = 10 * np.log10(ds["true_sigma_bs_m2"].mean("ping", skipna=True))
-    ds["ts_estimate_db"].attrs = {"units": "dB re 1 m^2",
-                                  "long_name": "10 log10(sum s_v / sum counted density) over the pings"}
-    ds["ts_true_db"].attrs = {"units": "dB re 1 m^2",
-                              "long_name": "10 log10 of the mean sigma_bs of the true targets in the volume"}
-    ds.attrs.update({
-        "title": f"abacus experiment: {scene.name}", "results_version": RESULTS_VERSION,
-        "scene_text": scene.resolved_text(), "scene_sha256": scene.sha256(),
-        "scene_file": str(scene.source_path or ""), "sweep": sweep.text if sweep else "",
-        "sweep_key": sweep.key if sweep else "", "sweep_path": sweep.path if sweep else "",
-        "sweep_processing_only": int(sweep.processing_only) if sweep else 1,
-        "settings_json": json.dumps([json.loads(p.settings.model_dump_json(by_alias=True)) for p in points]),
-        "stage_seconds_json": json.dumps(stages),
-        "notes": "; ".join(f"{n} ({c} task{'s' if c > 1 else ''})" for n, c in sorted(notes.items())),
-        **{k: v for k, v in timing.items()}})
-    return ds
-
-
-def _write_results(ds: xr.Dataset, path: Path, fmt: str):
-    """Atomically, chunked by ping."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    if tmp.exists():
-        shutil.rmtree(tmp) if tmp.is_dir() else tmp.unlink()
-    if fmt == "zarr":
-        enc = {k: {"chunks": tuple(1 if d == "ping" else ds.sizes[d] for d in v.dims)}
-               for k, v in ds.data_vars.items() if "ping" in v.dims}
-        ds.to_zarr(tmp, mode="w", encoding=enc, zarr_format=2, consolidated=True)
-    else:
-        enc = {k: {"chunksizes": tuple(1 if d == "ping" else ds.sizes[d] for d in v.dims)}
-               for k, v in ds.data_vars.items() if "ping" in v.dims}
-        ds.to_netcdf(tmp, engine="netcdf4", encoding=enc)
-    if path.exists():
-        shutil.rmtree(path) if path.is_dir() else path.unlink()
-    tmp.replace(path)

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from acoustics.sonar import preset
+
 __all__ = ["Medium", "francois_garrison_db_per_m", "mackenzie_sound_speed_m_s"]
 
 
@@ -76,7 +78,7 @@ class Medium:
         Environment the numbers came from (recorded in datasets).
     """
 
-    sound_speed_m_s: float = 1530.0
+    sound_speed_m_s: float = preset.SOUND_SPEED_M_S
     absorption_db_per_m: float = 0.0
     temperature_c: float = 10.0
     salinity_psu: float = 35.0

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from processing.atomic import staged
+
 __all__ = ["render_scene"]
 
 
@@ -33,8 +35,8 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     """Draw the scene; write a PNG when ``output`` is given. Returns the output path (or None)."""
     import pyvista as pv
 
-    from .simulate import counting_volume_of, make_setup
-    from .targets import draw_targets
+    from acoustics.simulation.run import counting_volume_of, make_setup
+    from acoustics.targets.draw import draw_targets
 
     off = not (interactive and (os.environ.get("DISPLAY") or os.name == "nt"))
     setup = make_setup(scene)
@@ -67,7 +69,7 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
         plotter.add_mesh(pv.Arrow(origin, pose.rotation[:, axis], scale=2.5), color=col, label=lab)
     # transmit beam (10 dB wedge) and counting volume
     r_end = setup.counting_range_m[1] * 1.15
-    from .beams import beamwidth
+    from acoustics.sonar.beams import beamwidth
     tx = setup.sonar.transmitter
     kw = dict(medium=setup.medium, frequency_hz=scene.signal.center_frequency_hz)
     wedge = _sector(0.5, r_end, beamwidth(tx, plane="azimuth", level_db=-10, **kw) / 2,
@@ -112,9 +114,8 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     if output is not None:
         out = Path(output)
         out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = out.with_name(f".{out.stem}.tmp.png")
-        plotter.screenshot(str(tmp))
-        tmp.replace(out)
+        with staged(out, suffix=".png") as tmp:
+            plotter.screenshot(str(tmp))
     if not off:
         plotter.show()
     plotter.close()

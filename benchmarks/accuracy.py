@@ -29,8 +29,8 @@ knob = REPORT.section
 @knob
 def directivity():
     """Element directivity: far_field vs huygens n x m (reference huygens 32 x 32)."""
-    from acoustics.arrays import abacus_transmitter
-    from acoustics.directivity import array_response, element_directivity, unit_vector
+    from acoustics.sonar.arrays import abacus_transmitter
+    from acoustics.sonar.directivity import array_response, element_directivity, unit_vector
     from acoustics.medium import Medium
 
     k = Medium().wavenumber_rad_m(420_375.0)
@@ -90,12 +90,12 @@ def directivity():
 @knob
 def synthesis():
     """Echo synthesis: fast (kernel length L) vs exact."""
-    from acoustics.arrays import ElementArray
-    from acoustics.echoes import EchoModel
+    from acoustics.sonar.arrays import ElementArray
+    from acoustics.synthesis.arrivals import EchoModel
     from acoustics.medium import Medium
-    from acoustics.signal import Pulse
-    from acoustics.sonar import preset_sonar
-    from acoustics.synthesis import synthesize
+    from acoustics.sonar.pulse import Pulse
+    from acoustics.sonar.build import preset_sonar
+    from acoustics.synthesis.synthesize import synthesize
 
     son = preset_sonar()
     subs = son.receiver.subarrays
@@ -147,7 +147,7 @@ def _record(text):
 
     from acoustics import SceneWarning
     from acoustics.scene import scene_from_text
-    from acoustics.simulate import simulate
+    from acoustics.simulation.run import simulate
     from processing.dataset import read_record
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
@@ -169,7 +169,6 @@ def beamformer():
         st = ImageSettings.model_validate({"beamformer": bf, "n_beams": 32, "range_m": [13, 26]})
         if bf != "fft":
             # the FFT's own beam angles, so that the images are cell-for-cell comparable
-            from processing.beamforming import fft_beam_angles
             st = ImageSettings.model_validate({"beamformer": bf, "n_beams": 32, "range_m": [13, 26],
                                                "azimuth_span_deg": None})
         ims[bf] = form_images(rec, st)
@@ -271,7 +270,7 @@ def _floor_run(density, level, pings):
     import processing
     from acoustics import SceneWarning
     from acoustics.scene import scene_from_text
-    from acoustics.simulate import simulate
+    from acoustics.simulation.run import simulate
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
         scene = scene_from_text(FLOOR45.format(density=density, level=level, pings=pings))
@@ -357,7 +356,7 @@ def multipath_order():
 
     from acoustics import SceneWarning
     from acoustics.scene import scene_from_text
-    from acoustics.simulate import simulate
+    from acoustics.simulation.run import simulate
     from processing.dataset import read_record
 
     def run(order):
@@ -397,7 +396,7 @@ def mesh_resolution():
     """Sphere facets: icosphere subdivisions 2..6 vs modal series and vs the finest PO."""
     import trimesh
 
-    from acoustics.scattering import (po_backscatter, rigid_sphere_backscatter,
+    from acoustics.paths.scattering import (po_backscatter, rigid_sphere_backscatter,
                                       triangle_phase_integral)
 
     a, c = 0.01905, 1530.0

@@ -32,12 +32,12 @@ def _scatterers(n, rng):
 def synthesis():
     import numba
 
-    from acoustics.arrays import ElementArray
-    from acoustics.echoes import EchoModel
+    from acoustics.sonar.arrays import ElementArray
+    from acoustics.synthesis.arrivals import EchoModel
     from acoustics.medium import Medium
-    from acoustics.signal import Pulse
-    from acoustics.sonar import preset_sonar
-    from acoustics.synthesis import synthesize
+    from acoustics.sonar.pulse import Pulse
+    from acoustics.sonar.build import preset_sonar
+    from acoustics.synthesis.synthesize import synthesize
 
     son = preset_sonar()
     subs = son.receiver.subarrays
@@ -89,7 +89,7 @@ def simulate_ping():
     import warnings
 
     from acoustics import SceneWarning, load_scene
-    from acoustics.simulate import simulate
+    from acoustics.simulation.run import simulate
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
         scene = load_scene(ROOT / "scenes" / "default.yaml")
@@ -115,7 +115,7 @@ def imaging():
     import scipy.fft as sfft
 
     from acoustics import SceneWarning, load_scene
-    from acoustics.simulate import simulate
+    from acoustics.simulation.run import simulate
     from processing.dataset import read_record
     from processing.imaging import form_images
     from processing.settings import ImageSettings
@@ -168,9 +168,9 @@ def rays():
     from embreex.mesh_construction import TriangleMesh
 
     from acoustics import SceneWarning, load_scene
-    from acoustics.meshes import SceneMesh
-    from acoustics.raycast import RayCaster
-    from acoustics.simulate import make_setup
+    from acoustics.paths.meshes import SceneMesh
+    from acoustics.paths.raycast import RayCaster
+    from acoustics.simulation.run import make_setup
 
     rng = np.random.default_rng(0)
     n = 1_000_000

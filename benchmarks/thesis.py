@@ -137,7 +137,7 @@ def target_strength():
 def noise():
     import processing
     from acoustics import SceneWarning, load_scene
-    from acoustics.simulate import simulate
+    from acoustics.simulation.run import simulate
     from processing.noise import rayleigh_fit
     ds, tmp = _run("noise.yaml", sweep="threshold=670,700,730")
     figs = _keep(tmp, "noise", ["noise_pdf", "counts", "sweep"])

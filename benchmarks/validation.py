@@ -34,7 +34,7 @@ def _scene(name=None, text=None):
 
 def _imaged(sc, pings=None):
     import processing
-    from acoustics.simulate import simulate
+    from acoustics.simulation.run import simulate
     tree = processing.image(simulate(sc, pings=pings))
     return tree, processing.images_of(tree)
 
@@ -192,7 +192,7 @@ def elevation_vs_snr():
 def location():
     """3-D location errors of isolated targets at SNR >= 20 dB, as a distribution."""
     import processing
-    from acoustics.simulate import simulate
+    from acoustics.simulation.run import simulate
     rng = np.random.default_rng(11)
     pts = []
     for i in range(10):
@@ -239,7 +239,7 @@ def location():
 def scenarios():
     """The chapter-6 scenarios without noise (Tables 6.1, 6.4) and the noise statistics."""
     import processing
-    from acoustics.simulate import simulate
+    from acoustics.simulation.run import simulate
     rows = []
     for name, label in (("counting_algorithm.yaml", "counting algorithm (Table 6.1)"),
                         ("position.yaml", "position (Table 6.4)")):
@@ -293,9 +293,9 @@ def raytraced():
     import trimesh
 
     import processing
-    from acoustics.echoes import arrivals
-    from acoustics.scattering import po_backscatter, rigid_sphere_backscatter, triangle_phase_integral
-    from acoustics.simulate import make_setup, simulate
+    from acoustics.synthesis.arrivals import arrivals
+    from acoustics.paths.scattering import po_backscatter, rigid_sphere_backscatter
+    from acoustics.simulation.run import make_setup, simulate
     from processing.dataset import TRUTH_GROUP
     from tests.test_raytrace import _mirror, _path_amplitude, floor_scene, lambert_floor_ratio
 

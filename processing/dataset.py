@@ -19,17 +19,16 @@ a half file under the final name.
 """
 from __future__ import annotations
 
-import os
-import shutil
-import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
+from .atomic import staged
+
 __all__ = ["DatasetError", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "TRUTH_GROUP",
-           "write_tree", "open_tree", "complex_of", "split_complex", "SonarRecord",
+           "write_tree", "write_dataset", "open_tree", "complex_of", "split_complex", "SonarRecord",
            "read_record"]
 
 FORMATS = ("netcdf", "zarr")
@@ -85,27 +84,46 @@ def write_tree(tree: xr.DataTree, path: str | Path, *, fmt: str | None = None) -
     fmt = _format_of(path, fmt)
     if not path.parent.exists():
         raise DatasetError(f"{path}: the folder {path.parent} does not exist")
-    tmp = path.with_name(f".{path.name}.tmp-{uuid.uuid4().hex[:8]}")
-    try:
+    with staged(path) as tmp:
         if fmt == "netcdf":
-            enc = _encoding(tree)
-            tree.to_netcdf(tmp, engine="netcdf4", encoding=enc or None)
-            os.replace(tmp, path)
+            tree.to_netcdf(tmp, engine="netcdf4", encoding=_encoding(tree) or None)
         else:
             tree.to_zarr(tmp, mode="w", consolidated=False, zarr_format=2)
-            if path.exists():
-                old = path.with_name(f".{path.name}.old-{uuid.uuid4().hex[:8]}")
-                os.replace(path, old)
-                os.replace(tmp, path)
-                shutil.rmtree(old, ignore_errors=True)
-            else:
-                os.replace(tmp, path)
-    except BaseException:
-        if tmp.is_dir():
-            shutil.rmtree(tmp, ignore_errors=True)
-        elif tmp.exists():
-            tmp.unlink()
-        raise
+    return path
+
+
+def write_dataset(ds: xr.Dataset, path: str | Path, *, fmt: str | None = None,
+                  chunk_dim: str | None = None) -> Path:
+    """Write one flat dataset atomically as NetCDF4 or Zarr (e.g. an experiment's results).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+    path : str or Path
+    fmt : {"netcdf", "zarr"}, optional
+        Default from the suffix.
+    chunk_dim : str, optional
+        Chunk every variable that has this dimension one step along it (whole along the rest).
+
+    Returns
+    -------
+    Path
+    """
+    path = Path(path)
+    fmt = _format_of(path, fmt)
+    if not path.parent.exists():
+        raise DatasetError(f"{path}: the folder {path.parent} does not exist")
+    chunks = {}
+    if chunk_dim is not None:
+        chunks = {k: tuple(1 if d == chunk_dim else ds.sizes[d] for d in v.dims)
+                  for k, v in ds.data_vars.items() if chunk_dim in v.dims}
+    with staged(path) as tmp:
+        if fmt == "zarr":
+            ds.to_zarr(tmp, mode="w", encoding={k: {"chunks": c} for k, c in chunks.items()},
+                       zarr_format=2, consolidated=True)
+        else:
+            ds.to_netcdf(tmp, engine="netcdf4",
+                         encoding={k: {"chunksizes": c} for k, c in chunks.items()})
     return path
 
 

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 from scipy.ndimage import map_coordinates
 
+from .atomic import staged
+
 __all__ = ["fan_beam", "plot_fan", "plot_range_profiles", "plot_phase_map", "save"]
 
 
@@ -116,9 +118,8 @@ def plot_phase_map(ax, psi, magnitude, range_m, beam_angle_rad, *, floor_db=-30.
 def save(fig, path: Path):
     """Write a figure atomically (temporary file, then rename)."""
     path = Path(path)
-    tmp = path.with_name(f".{path.stem}.tmp.png")
-    fig.savefig(tmp, dpi=110)
-    tmp.replace(path)
+    with staged(path, suffix=".png") as tmp:
+        fig.savefig(tmp, dpi=110)
     return path
 
 

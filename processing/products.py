@@ -15,6 +15,7 @@ import numpy as np
 import xarray as xr
 import yaml
 
+from .atomic import staged
 from .config import ConfigError, dump_yaml, validate_file
 from .dataset import ELEMENT_GROUP, DatasetError, read_record, split_complex
 from .imaging import Images, form_images
@@ -313,14 +314,12 @@ def write_csv(tree: xr.DataTree, path) -> Path:
     import csv
     table = detections_of(tree)
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
     keys = list(table)
-    with open(tmp, "w", newline="") as fh:
+    with staged(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(keys)
         for i in range(len(table[keys[0]]) if keys else 0):
             w.writerow([_fmt(table[k][i]) for k in keys])
-    tmp.replace(path)
     return path
 
 

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from .atomic import write_text_atomic
 from .plots import save
 
 __all__ = ["write_report", "report_figures", "plateau", "PLATEAU_TARGETS"]
@@ -314,7 +315,5 @@ def write_report(ds: xr.Dataset, out_dir) -> Path:
             "figcaption{font-size:0.9em;color:#555}code{background:#f4f4f4}"
             "</style></head><body>" + "\n".join(parts) + "</body></html>")
     path = out / "report.html"
-    tmp = out / ".report.html.tmp"
-    tmp.write_text(page, encoding="utf-8")
-    tmp.replace(path)
+    write_text_atomic(path, page)
     return path

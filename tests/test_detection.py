@@ -14,7 +14,7 @@ from scipy import stats
 import processing
 from acoustics import SceneWarning, load_scene
 from acoustics.scene import scene_from_text
-from acoustics.simulate import simulate
+from acoustics.simulation.run import simulate
 from processing.counting import CountingVolume
 from processing.locate import locate
 from processing.noise import NoiseEstimateError, rayleigh_fit

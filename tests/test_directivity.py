@@ -8,8 +8,8 @@ from hypothesis import strategies as st
 from scipy.special import diric
 
 from acoustics import ElementArray, array_pattern, array_response, element_directivity
-from acoustics.arrays import abacus_receiver, abacus_transmitter
-from acoustics.directivity import unit_vector
+from acoustics.sonar.arrays import abacus_receiver, abacus_transmitter
+from acoustics.sonar.directivity import unit_vector
 
 from .conftest import K_RAD_M
 

@@ -3,7 +3,6 @@ echo integration against a known s_v, target strength from s_v and the counted d
 report."""
 from __future__ import annotations
 
-import json
 import math
 import shutil
 import warnings
@@ -16,7 +15,7 @@ import processing
 from acoustics import SceneWarning, load_scene
 from acoustics.experiment import ExperimentError, experiment_plan, parse_sweep, run_experiment
 from acoustics.scene import scene_from_text
-from acoustics.simulate import simulate
+from acoustics.simulation.run import simulate
 from processing.beamforming import SubarrayGeometry
 from processing.compression import RangeFilter
 from processing.dataset import read_record

@@ -9,9 +9,9 @@ import pytest
 
 import processing
 from acoustics import SceneWarning, load_scene
-from acoustics.directivity import array_response, element_directivity
+from acoustics.sonar.directivity import array_response, element_directivity
 from acoustics.scene import scene_from_text
-from acoustics.simulate import make_setup, simulate
+from acoustics.simulation.run import make_setup, simulate
 from processing.beamforming import SubarrayGeometry, beamform_das, beamform_fft
 from processing.compression import RangeFilter, compress, window
 from processing.dataset import DatasetError, read_record

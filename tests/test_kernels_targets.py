@@ -10,15 +10,15 @@ import pytest
 from scipy import stats
 
 from acoustics import SceneWarning
-from acoustics.directivity import array_response, element_directivity
-from acoustics.echoes import EchoModel, arrivals
-from acoustics.kernels import EXP_SMALL_LIMIT, cis_cycles, exp_small, sin_over, sincos
+from acoustics.sonar.directivity import array_response, element_directivity
+from acoustics.synthesis.arrivals import EchoModel, arrivals
+from acoustics.synthesis.kernels import EXP_SMALL_LIMIT, cis_cycles, exp_small, sin_over, sincos
 from acoustics.medium import Medium
-from acoustics.receiver_chain import quantize
+from acoustics.synthesis.receiver import quantize
 from acoustics.scene import scene_from_text
-from acoustics.sonar import preset_sonar
-from acoustics.synthesis import fractional_delay_table
-from acoustics.targets import draw_targets
+from acoustics.sonar.build import preset_sonar
+from acoustics.synthesis.synthesize import fractional_delay_table
+from acoustics.targets.draw import draw_targets
 
 
 @nb.njit
@@ -165,6 +165,6 @@ def test_density_gives_poisson_counts_and_fixed_populations_stay_put():
 def test_world_frame_targets_follow_the_pose():
     s = _scene("name: w\nsonar:\n  pose: {position_m: [0, 0, 5], boresight: [1, 0, 0], receiver_axis: [0, 1, 0]}\n"
                "targets:\n  points:\n    - {frame: world, position_m: [20, 1, 5]}\n")
-    from acoustics.sonar import build_sonar
+    from acoustics.sonar.build import build_sonar
     t = draw_targets(s, 0, build_sonar(s).pose)
     np.testing.assert_allclose(t.position_sonar_m[0], [1, 0, 20], atol=1e-12)

@@ -12,12 +12,12 @@ import pytest
 import trimesh
 
 from acoustics import SceneWarning, load_scene
-from acoustics.directivity import array_response, element_directivity
-from acoustics.meshes import SceneMesh
-from acoustics.raycast import RayCaster
-from acoustics.scattering import lambert_sb, po_backscatter, rigid_sphere_backscatter
+from acoustics.sonar.directivity import array_response, element_directivity
+from acoustics.paths.meshes import SceneMesh
+from acoustics.paths.raycast import RayCaster
+from acoustics.paths.scattering import lambert_sb, po_backscatter, rigid_sphere_backscatter
 from acoustics.scene import SceneError, scene_from_text
-from acoustics.simulate import make_setup, simulate
+from acoustics.simulation.run import make_setup, simulate
 import processing
 from processing.compression import RangeFilter, window
 from processing.dataset import TRUTH_GROUP, read_record
@@ -241,7 +241,7 @@ def _path_amplitude(setup, p_tx, p_rx, coef):
 def test_surface_multipath_matches_analytic_image_sources():
     """Order 1 under a pressure-release surface (R = −1): Tx→surface→target→Rx,
     Tx→target→surface→Rx and both, each delayed by its image's extra path."""
-    from acoustics.echoes import arrivals
+    from acoustics.synthesis.arrivals import arrivals
     scene = load("multipath_surface.yaml")
     setup = make_setup(scene)
     pose = setup.sonar.pose

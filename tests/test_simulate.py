@@ -7,14 +7,13 @@ import warnings
 
 import numpy as np
 import pytest
-import xarray as xr
 from scipy import stats
 
 from acoustics import SceneWarning, load_scene
-from acoustics.directivity import array_response, element_directivity
+from acoustics.sonar.directivity import array_response, element_directivity
 from acoustics.scene import scene_from_text
-from acoustics.simulate import make_setup, simulate
-from acoustics.synthesis import synthesize
+from acoustics.simulation.run import make_setup, simulate
+from acoustics.synthesis.synthesize import synthesize
 from processing.dataset import ELEMENT_GROUP, TRUTH_GROUP, open_tree, read_record, write_tree
 
 from .conftest import SCENES
@@ -283,7 +282,7 @@ def test_carrier_phase_is_float64_exact_at_70_m():
     phase must match a high-precision reference to 1e-9 rad."""
     from decimal import Decimal, getcontext
 
-    from acoustics.echoes import arrivals
+    from acoustics.synthesis.arrivals import arrivals
     getcontext().prec = 40
     setup = make_setup(load("two_targets.yaml"))
     p = np.array([[0.3, 0.05, 69.9]])

@@ -1,0 +1,28 @@
+"""``abacus view``: a 3-D picture of a scene (needs the optional ``view`` extra: pyvista)."""
+from __future__ import annotations
+
+from acoustics.cli.common import UsageError, load
+
+HELP = "3-D view of a scene (meshes, sonar, beam, targets)"
+
+
+def add_parser(sub):
+    v = sub.add_parser("view", help=HELP)
+    v.add_argument("scene", help="scene file (YAML) or a built-in scene's name")
+    v.add_argument("-o", "--output", help="PNG file to write")
+    v.add_argument("--ping", type=int, default=0, help="ping whose targets to draw")
+    v.add_argument("--interactive", action="store_true", help="open a window (needs a display)")
+    v.set_defaults(func=command)
+
+
+def command(args) -> int:
+    import importlib.util
+    if importlib.util.find_spec("pyvista") is None:
+        raise UsageError("abacus view needs pyvista, an optional dependency: "
+                         "python -m pip install 'abacus[view]'")
+    from acoustics.view import render_scene
+    scene = load(args.scene)
+    out = render_scene(scene, args.output, ping=args.ping, interactive=args.interactive)
+    if out:
+        print(f"wrote {out}")
+    return 0

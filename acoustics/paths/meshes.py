@@ -1,0 +1,266 @@
+"""Build the triangle meshes a scene asks for, in the sonar frame, and check them.
+
+Procedural shapes are built with trimesh; files are read with trimesh. Every mesh is checked:
+an unreadable or missing file, an empty mesh or non-finite vertices are errors; degenerate faces,
+duplicate vertices and inconsistent winding are repaired when ``repair`` is on (the default) and
+the repair is reported as a :class:`~acoustics.scene.SceneWarning` naming the file and the mesh.
+Meshes end in the sonar frame (coordinates local to the sonar), which is what keeps Embree's
+float32 arithmetic accurate near the sonar.
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from acoustics.frames import Pose
+from acoustics.seeds import ping_rng
+
+__all__ = ["SceneMesh", "build_mesh", "scene_meshes", "MeshError"]
+
+
+class MeshError(ValueError):
+    """A mesh that cannot be used; the message names the mesh, its key and file."""
+
+
+@dataclass(frozen=True, eq=False)
+class SceneMesh:
+    """A built mesh and what it is.
+
+    Attributes
+    ----------
+    name : str
+    kind : {"boundary", "target"}
+    role : str
+        "surface", "floor", "obstacle" (boundaries) or "rigid"/"pressure_release" (targets).
+    mesh : trimesh.Trimesh
+        In the sonar frame (m).
+    spec : object
+        The boundary or mesh-target spec it came from.
+    key : str
+        Its key path in the scene file, for messages.
+    """
+
+    name: str
+    kind: str
+    role: str
+    mesh: trimesh.Trimesh
+    spec: object
+    key: str
+
+    @property
+    def plane(self):
+        """(unit normal (3,), offset d) with n·x = d if the mesh is flat, else None."""
+        m = self.mesh
+        n = m.face_normals
+        if len(n) == 0:
+            return None
+        ref = n[np.argmax(m.area_faces)]
+        if np.max(1.0 - np.abs(n @ ref)) > 1e-9:
+            return None
+        d = float(np.mean(m.vertices @ ref))
+        if np.max(np.abs(m.vertices @ ref - d)) > 1e-6 * max(1.0, m.scale):
+            return None
+        return ref, d
+
+
+def _rotation(deg):
+    rx, ry, rz = np.radians(deg)
+    cx, sx, cy, sy, cz, sz = np.cos(rx), np.sin(rx), np.cos(ry), np.sin(ry), np.cos(rz), np.sin(rz)
+    r_x = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    r_y = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    r_z = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return r_z @ r_y @ r_x
+
+
+def _grid_mesh(x, y, z):
+    """Triangulated height field z[j, i] over x[i], y[j]."""
+    xx, yy = np.meshgrid(x, y)
+    v = np.column_stack([xx.ravel(), yy.ravel(), np.asarray(z, float).ravel()])
+    nx, ny = x.size, y.size
+    i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1))
+    a = (j * nx + i).ravel()
+    b, c, d = a + 1, a + nx, a + nx + 1
+    faces = np.concatenate([np.column_stack([a, b, d]), np.column_stack([a, d, c])])
+    return trimesh.Trimesh(v, faces, process=False)
+
+
+def _rough_floor(spec, seed: int):
+    nx = int(np.ceil(spec.size_m[0] / spec.resolution_m)) + 1
+    ny = int(np.ceil(spec.size_m[1] / spec.resolution_m)) + 1
+    if nx * ny > 4_000_000:
+        raise MeshError(f"rough_floor of {nx} x {ny} vertices is too fine (limit 4 million): raise "
+                        f"resolution_m or shrink size_m")
+    x = spec.center_m[0] + np.linspace(-spec.size_m[0] / 2, spec.size_m[0] / 2, nx)
+    y = spec.center_m[1] + np.linspace(-spec.size_m[1] / 2, spec.size_m[1] / 2, ny)
+    h = np.zeros((ny, nx))
+    if spec.rms_height_m > 0:
+        # Gaussian random field: white noise filtered by a Gaussian spectrum, normalised to the RMS
+        rng = ping_rng(seed + spec.seed, 2**31 - 2, "reverberation", 0)
+        w = rng.standard_normal((ny, nx))
+        kx = np.fft.fftfreq(nx, spec.resolution_m) * 2 * np.pi
+        ky = np.fft.fftfreq(ny, spec.resolution_m) * 2 * np.pi
+        kk = kx[None, :] ** 2 + ky[:, None] ** 2
+        filt = np.exp(-kk * spec.correlation_length_m**2 / 4)
+        h = np.real(np.fft.ifft2(np.fft.fft2(w) * filt))
+        h *= spec.rms_height_m / max(h.std(), 1e-300)
+    z = spec.depth_m + spec.slope[0] * (x[None, :] - spec.center_m[0]) + spec.slope[1] * (
+        y[:, None] - spec.center_m[1]) + h
+    return _grid_mesh(x, y, z)
+
+
+def _load_grid(path: Path):
+    if path.suffix.lower() == ".npy":
+        return np.load(path)
+    return np.loadtxt(path, delimiter=",")
+
+
+def build_mesh(spec, *, name: str, key: str, resolve, seed: int = 0) -> trimesh.Trimesh:
+    """Build one mesh in the frame its spec is written in (before the pose).
+
+    Parameters
+    ----------
+    spec : MeshSpec
+    name, key : str
+        For messages.
+    resolve : callable(str) -> Path
+        Turns a path written in the scene into a file path.
+    seed : int
+        The scene's seed (rough floors).
+
+    Raises
+    ------
+    MeshError
+    """
+    shape = spec.shape
+    where = f"{key} ({name!r})"
+    try:
+        if shape == "plane":
+            n = np.asarray(spec.normal, float)
+            if np.linalg.norm(n) == 0:
+                raise MeshError(f"{where}: plane normal must be a non-zero vector")
+            nx, ny = spec.segments
+            x = np.linspace(-spec.size_m[0] / 2, spec.size_m[0] / 2, nx + 1)
+            y = np.linspace(-spec.size_m[1] / 2, spec.size_m[1] / 2, ny + 1)
+            m = _grid_mesh(x, y, np.zeros((ny + 1, nx + 1)))
+            # rotate +z onto the normal, then move to the centre
+            m.apply_transform(trimesh.geometry.align_vectors([0, 0, 1], n / np.linalg.norm(n)))
+            m.apply_translation(spec.center_m)
+        elif shape == "rough_floor":
+            m = _rough_floor(spec, seed)
+        elif shape == "height_grid":
+            path = resolve(spec.file)
+            if not path.exists():
+                raise MeshError(f"{where}: height grid file {path} does not exist")
+            z = np.asarray(_load_grid(path), float)
+            if z.ndim != 2 or min(z.shape) < 2:
+                raise MeshError(f"{where}: {path} must hold a 2-D grid of at least 2 x 2 heights")
+            x = spec.origin_m[0] + np.arange(z.shape[1]) * spec.spacing_m[0]
+            y = spec.origin_m[1] + np.arange(z.shape[0]) * spec.spacing_m[1]
+            m = _grid_mesh(x, y, z)
+        elif shape == "sphere":
+            m = trimesh.creation.icosphere(subdivisions=spec.subdivisions, radius=spec.radius_m)
+            m.apply_translation(spec.center_m)
+        elif shape == "spheroid":
+            m = trimesh.creation.icosphere(subdivisions=spec.subdivisions, radius=1.0)
+            m.apply_scale(spec.semi_axes_m)
+            m.apply_translation(spec.center_m)
+        elif shape == "box":
+            m = trimesh.creation.box(extents=spec.size_m)
+            m.apply_translation(spec.center_m)
+        else:
+            path = resolve(spec.file)
+            if not path.exists():
+                raise MeshError(f"{where}: mesh file {path} does not exist")
+            try:
+                loaded = trimesh.load(path, force="mesh", process=False)
+            except Exception as exc:  # any reader failure is the user's file
+                raise MeshError(f"{where}: cannot read mesh file {path} ({exc.__class__.__name__}: "
+                                f"{exc})") from None
+            if not isinstance(loaded, trimesh.Trimesh):
+                raise MeshError(f"{where}: {path} holds no triangle mesh")
+            m = loaded
+    except MeshError:
+        raise
+    except (ValueError, OSError) as exc:
+        raise MeshError(f"{where}: {exc}") from None
+    source = getattr(spec, "file", None)
+    label = f"{where}" + (f", file {resolve(source)}" if source else "")
+    v = np.asarray(m.vertices, float)
+    if len(m.faces) == 0 or len(v) == 0:
+        raise MeshError(f"{label}: the mesh is empty (no faces)")
+    if not np.all(np.isfinite(v)):
+        raise MeshError(f"{label}: the mesh has non-finite vertex coordinates (NaN or inf)")
+    if np.any(m.faces < 0) or np.any(m.faces >= len(v)):
+        raise MeshError(f"{label}: faces refer to vertices that do not exist")
+    repaired = _repair(m, label, getattr(spec, "repair", True))
+    t = spec.transform
+    if t.scale != 1.0 or any(t.rotate_deg) or any(t.translate_m):
+        mat = np.eye(4)
+        mat[:3, :3] = _rotation(t.rotate_deg) * t.scale
+        mat[:3, 3] = t.translate_m
+        repaired.apply_transform(mat)
+    return repaired
+
+
+def _repair(m, label, allowed: bool):
+    """Drop degenerate faces, merge duplicate vertices, make winding consistent — and say so."""
+    area = m.area_faces
+    degenerate = ~(area > 1e-14 * max(m.scale, 1e-12) ** 2)
+    notes = []
+    if degenerate.any():
+        if not allowed:
+            raise MeshError(f"{label}: {int(degenerate.sum())} degenerate (zero-area) faces; set "
+                            f"repair: true or fix the file")
+        m = trimesh.Trimesh(m.vertices, m.faces[~degenerate], process=False)
+        notes.append(f"removed {int(degenerate.sum())} degenerate faces")
+        if len(m.faces) == 0:
+            raise MeshError(f"{label}: every face is degenerate: the mesh is empty")
+    before = len(m.vertices)
+    m.merge_vertices()
+    if len(m.vertices) < before:
+        notes.append(f"merged {before - len(m.vertices)} duplicate vertices")
+    if not m.is_winding_consistent:
+        if not allowed:
+            raise MeshError(f"{label}: inconsistent face winding (normals); set repair: true")
+        trimesh.repair.fix_winding(m)
+        notes.append("made the face winding consistent")
+    if m.is_watertight and m.volume < 0:
+        m.invert()
+        notes.append("turned the normals outwards")
+    if notes:
+        from acoustics.scene import SceneWarning
+        warnings.warn(f"{label}: repaired: {'; '.join(notes)}", SceneWarning, stacklevel=3)
+    return m
+
+
+def scene_meshes(scene, pose: Pose) -> list[SceneMesh]:
+    """Every boundary and mesh target of a scene, built and moved into the sonar frame.
+
+    Raises
+    ------
+    acoustics.scene.SceneError
+        A mesh that cannot be used (the message names the mesh, its key and its file).
+    """
+    from acoustics.scene import SceneError
+    out = []
+    items = [("boundary", f"boundaries[{i}]", b, b.role) for i, b in enumerate(scene.boundaries)]
+    items += [("target", f"targets.meshes[{i}]", t, t.boundary)
+              for i, t in enumerate(scene.targets.meshes)]
+    src = str(scene.source_path or "<scene>")
+    for kind, key, spec, role in items:
+        try:
+            m = build_mesh(spec.mesh, name=spec.name, key=f"{key}.mesh", resolve=scene.resolve_path,
+                           seed=scene.seed)
+        except MeshError as exc:
+            raise SceneError(f"{src}: {exc}") from None
+        if spec.frame == "world":
+            mat = np.eye(4)
+            mat[:3, :3] = pose.rotation.T
+            mat[:3, 3] = -pose.rotation.T @ pose.position_m
+            m.apply_transform(mat)
+        out.append(SceneMesh(spec.name, kind, role, m, spec, key))
+    return out

@@ -1,0 +1,259 @@
+"""The ray-traced scene: what meshes add to a ping's scatterers.
+
+Every effect below produces *virtual scatterers* — a transmit-leg end point, a receive-leg start
+point and a complex strength (m) — that go through the same per-element synthesis as point
+targets (acoustics.synthesis). Each runs only when the scene calls for it:
+
+``occlusion``      point targets whose transmit or receive path a mesh blocks lose their direct
+                   echo (segments from the transmitter's and the receiver's phase centres);
+``reverberation``  rays from the transmitter fill its beam down to a level; each first hit on a
+                   boundary with a scattering law becomes a facet scatterer of footprint
+                   A = r² ΔΩ / cos θ_inc and strength √(s_b A) e^{jϕ}, s_b from Lambert's law
+                   and ϕ a random phase, frozen for static geometry (seeded);
+``multipath``      specular paths by image sources on planar boundaries, up to K bounces per leg,
+                   each bounce point checked on its mesh and every segment checked for
+                   blockage by ray casting; strength × Π R(θ_inc) (reflection coefficients);
+``mesh_targets``   facets of mesh targets facing the transmitter and visible from it, each a
+                   scatterer of physical-optics strength (jk/2π)(−n̂·k̂) ∫ e^{−2jk k̂·x} dS
+                   (Gordon's exact triangle integral), computed once for static geometry.
+
+A scene without meshes never builds a ray caster.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from acoustics.sonar.beams import illuminated_extent
+from acoustics.paths.meshes import SceneMesh, scene_meshes
+from acoustics.medium import Medium
+from acoustics.paths.raycast import RayCaster
+from acoustics.paths.scattering import lambert_sb, rayleigh_reflection, triangle_phase_integral
+from acoustics.seeds import FIXED, ping_rng
+from acoustics.synthesis.scatterers import VirtualScatterers
+
+__all__ = ["RayScene", "build_ray_scene"]
+
+
+def _mirror(x, plane):
+    n, d = plane
+    return x - 2.0 * ((x @ n) - d)[..., None] * n
+
+
+@dataclass
+class RayScene:
+    """Meshes, their caster, and what is fixed for a run (planes, facets)."""
+
+    meshes: list
+    caster: RayCaster
+    tx_center: np.ndarray
+    rx_center: np.ndarray
+    planes: dict
+    medium: Medium
+    frequency_hz: float
+    _reverb_rays: tuple | None = None
+    _mesh_target_scatterers: VirtualScatterers | None = None
+    hit_sample: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    # ---------------------------------------------------------------- occlusion
+    def shadowed(self, positions_m):
+        """Point targets (n, 3) whose transmit or receive path a mesh blocks, bool (n,)."""
+        p = np.asarray(positions_m, float).reshape(-1, 3)
+        if p.shape[0] == 0:
+            return np.zeros(0, bool)
+        tx = self.caster.occluded(np.broadcast_to(self.tx_center, p.shape), p, purpose="occlusion")
+        rx = self.caster.occluded(np.broadcast_to(self.rx_center, p.shape), p, purpose="occlusion")
+        return tx | rx
+
+    # ------------------------------------------------------------ reverberation
+    def reverberation(self, scene, setup, ping: int, seed: int) -> VirtualScatterers:
+        spec = scene.effects.reverberation
+        if self._reverb_rays is None:
+            self._reverb_rays = self._cast_reverberation_rays(scene, setup, seed)
+        pts, amp, n = self._reverb_rays
+        if n == 0:
+            return VirtualScatterers.empty()
+        if spec.refresh_phase:
+            phase = ping_rng(seed, ping, "reverberation", 3).uniform(-np.pi, np.pi, n)
+        else:
+            phase = ping_rng(seed, FIXED, "reverberation", 3).uniform(-np.pi, np.pi, n)
+        return VirtualScatterers(pts, pts.copy(), amp * np.exp(1j * phase),
+                                 np.full(n, "reverberation"))
+
+    def _cast_reverberation_rays(self, scene, setup, seed):
+        spec = scene.effects.reverberation
+        tx = setup.sonar.transmitter
+        lvl = spec.beam_level_db
+        kw = dict(medium=setup.medium, frequency_hz=self.frequency_hz)
+        # the fan covers every lobe above the level, sidelobes included: a floor lit by an
+        # elevation sidelobe echoes at its own range, as it does at sea
+        az_lo, az_hi = illuminated_extent(tx, plane="azimuth", level_db=lvl, **kw)
+        el_lo, el_hi = illuminated_extent(tx, plane="elevation", level_db=lvl, **kw)
+        dens = spec.rays_per_square_degree
+        n_az = max(2, int(np.ceil(np.degrees(az_hi - az_lo) * np.sqrt(dens))))
+        n_el = max(2, int(np.ceil(np.degrees(el_hi - el_lo) * np.sqrt(dens))))
+        rng = ping_rng(seed, FIXED, "reverberation", 1)
+        ia, ie = np.meshgrid(np.arange(n_az), np.arange(n_el), indexing="ij")
+        d_az, d_el = (az_hi - az_lo) / n_az, (el_hi - el_lo) / n_el
+        # jittered grid: one ray per cell at a random place in it (frozen)
+        az = az_lo + (ia.ravel() + rng.random(ia.size)) * d_az
+        el = el_lo + (ie.ravel() + rng.random(ie.size)) * d_el
+        u = np.stack([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)], -1)
+        solid = np.cos(el) * d_az * d_el
+        s = scene.sampling
+        c = setup.medium.sound_speed_m_s
+        r_max = spec.max_range_m or c * (s.time_offset_s + s.samples / s.rate_hz) / 2
+        hits = self.caster.first_hit(np.broadcast_to(self.tx_center, u.shape), u,
+                                     max_distance_m=r_max, purpose="reverberation")
+        keep = hits.hit.copy()
+        mu = np.zeros(len(self.meshes))
+        for i, sm in enumerate(self.meshes):
+            law = getattr(sm.spec, "scattering", None) if sm.kind == "boundary" else None
+            if law is None:
+                mu[i] = np.nan
+            else:
+                mu[i] = law.mu_db
+        keep &= np.isfinite(mu[np.where(hits.hit, hits.mesh, 0)]) & hits.hit
+        if not keep.any():
+            return np.zeros((0, 3)), np.zeros(0), 0
+        r = hits.distance[keep]
+        cos_inc = np.clip(np.abs(np.einsum("ij,ij->i", u[keep], hits.normal[keep])), 1e-9, 1.0)
+        grazing = np.pi / 2 - np.arccos(cos_inc)
+        area = r**2 * solid[keep] / cos_inc
+        sb = lambert_sb(grazing, 0.0) * 10.0 ** (mu[hits.mesh[keep]] / 10.0)
+        pts = hits.point[keep]
+        take = np.linspace(0, pts.shape[0] - 1, min(2000, pts.shape[0])).astype(int)
+        self.hit_sample = pts[take]
+        return pts, np.sqrt(sb * area), int(keep.sum())
+
+    # ----------------------------------------------------------------- multipath
+    def _reflection(self, mesh_index, cos_inc):
+        spec = self.meshes[mesh_index].spec.reflection
+        if spec is None:
+            return np.zeros_like(cos_inc, complex)
+        if spec.model == "constant":
+            return np.full(cos_inc.shape, complex(spec.coefficient))
+        return rayleigh_reflection(np.arccos(np.clip(cos_inc, 0.0, 1.0)),
+                                   density_ratio=spec.density_kg_m3 / spec.water_density_kg_m3,
+                                   speed_ratio=spec.sound_speed_m_s / self.medium.sound_speed_m_s)
+
+    def _unfold(self, start, end, seq):
+        """Image of ``end`` seen from ``start`` through bounces ``seq``; validity and Π R.
+
+        Returns image (n, 3), valid (n,), coefficient (n,) complex."""
+        n = end.shape[0]
+        image = end.copy()
+        for b in reversed(seq):
+            image = _mirror(image, self.planes[b])
+        valid = np.ones(n, bool)
+        coef = np.ones(n, complex)
+        cur = np.broadcast_to(start, end.shape).copy()
+        remaining = image.copy()
+        for i, b in enumerate(seq):
+            nrm, d = self.planes[b]
+            v = remaining - cur
+            den = v @ nrm
+            t = np.divide(d - cur @ nrm, den, out=np.full(n, -1.0), where=np.abs(den) > 1e-15)
+            valid &= (t > 0) & (t < 1)
+            bounce = cur + np.clip(t, 0, 1)[:, None] * v
+            seg = bounce - cur
+            length = np.linalg.norm(seg, axis=1)
+            dirs = seg / np.maximum(length, 1e-300)[:, None]
+            # the bounce point must be on this boundary's mesh, first thing along the segment
+            hits = self.caster.first_hit(cur, np.where(valid[:, None], dirs, [0, 0, 1.0]),
+                                         from_surface=i > 0, purpose="multipath")
+            on = hits.hit & (hits.mesh == b) & (np.abs(hits.distance - length) <= 10 * self.caster.eps_m
+                                                  + 1e-9 * length)
+            valid &= on
+            coef *= self._reflection(b, np.abs(dirs @ nrm))
+            remaining = _mirror(remaining, self.planes[b])
+            cur = bounce
+        # last segment, bounce -> end, must be clear
+        if len(seq):
+            valid &= ~self.caster.occluded(cur, end, purpose="multipath", start_on_surface=True)
+        return image, valid, coef
+
+    def multipath(self, positions_m, strength, order: int) -> VirtualScatterers:
+        """Specular paths of point targets with up to ``order`` bounces per leg."""
+        p = np.asarray(positions_m, float).reshape(-1, 3)
+        q = np.asarray(strength, complex).reshape(-1)
+        planes = sorted(self.planes)
+        if order < 1 or not planes or p.shape[0] == 0:
+            return VirtualScatterers.empty()
+        seqs = [()]
+        frontier = [()]
+        for _ in range(order):
+            frontier = [s + (b,) for s in frontier for b in planes if not s or s[-1] != b]
+            seqs += frontier
+        legs_tx = {s: self._unfold(self.tx_center, p, s) for s in seqs}
+        legs_rx = {s: self._unfold(self.rx_center, p, s) for s in seqs}
+        parts = []
+        for st in seqs:
+            for sr in seqs:
+                if not st and not sr:
+                    continue
+                itx, vtx, ctx = legs_tx[st]
+                irx, vrx, crx = legs_rx[sr]
+                ok = vtx & vrx
+                if ok.any():
+                    parts.append(VirtualScatterers(itx[ok], irx[ok], q[ok] * ctx[ok] * crx[ok],
+                                                   np.full(int(ok.sum()), "multipath")))
+        return VirtualScatterers.concat(parts)
+
+    # -------------------------------------------------------------- mesh targets
+    def mesh_targets(self) -> VirtualScatterers:
+        """Physical-optics facet scatterers of every mesh target (computed once)."""
+        if self._mesh_target_scatterers is not None:
+            return self._mesh_target_scatterers
+        k = 2 * np.pi * self.frequency_hz / self.medium.sound_speed_m_s
+        parts = []
+        for i, sm in enumerate(self.meshes):
+            if sm.kind != "target":
+                continue
+            tri = np.asarray(sm.mesh.triangles, float)
+            c = tri.mean(axis=1)
+            n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            n /= np.linalg.norm(n, axis=1)[:, None]
+            v = c - self.tx_center
+            dist = np.linalg.norm(v, axis=1)
+            kh = v / dist[:, None]
+            cosine = -np.einsum("ij,ij->i", n, kh)
+            lit = cosine > 0
+            if not lit.any():
+                continue
+            # visible: the first thing a ray from the transmitter meets is this facet
+            hits = self.caster.first_hit(np.broadcast_to(self.tx_center, (int(lit.sum()), 3)), kh[lit],
+                                         purpose="mesh_targets")
+            faces = np.flatnonzero(self.caster.face_mesh == i)
+            first_face = faces[0] if faces.size else 0
+            own = hits.face - first_face == np.flatnonzero(lit)
+            near = np.abs(hits.distance - dist[lit]) <= 1e-6 * dist[lit] + 10 * self.caster.eps_m
+            vis = np.zeros_like(lit)
+            vis[lit] = hits.hit & (own | ((hits.mesh == i) & near))
+            if not vis.any():
+                continue
+            integ = triangle_phase_integral(tri[vis], -2 * k * kh[vis])
+            f = 1j * k / (2 * np.pi) * cosine[vis] * integ
+            if sm.role == "pressure_release":
+                f = -f
+            parts.append(VirtualScatterers(c[vis], c[vis].copy(), f, np.full(int(vis.sum()), "mesh_target")))
+        self._mesh_target_scatterers = VirtualScatterers.concat(parts)
+        return self._mesh_target_scatterers
+
+
+def build_ray_scene(scene, setup) -> RayScene | None:
+    """The ray-traced scene of a run, or None when the scene has no meshes (no caster built)."""
+    if not scene.boundaries and not scene.targets.meshes:
+        return None
+    meshes: list[SceneMesh] = scene_meshes(scene, setup.sonar.pose)
+    caster = RayCaster(meshes, threads=scene.effects.ray_threads)
+    planes = {}
+    for i, sm in enumerate(meshes):
+        if sm.kind == "boundary" and getattr(sm.spec, "reflection", None) is not None:
+            pl = sm.plane
+            if pl is not None:
+                planes[i] = pl
+    rx = setup.sonar.receiver.elements
+    return RayScene(meshes, caster, setup.sonar.transmitter.phase_center_m, rx.phase_center_m, planes,
+                    setup.medium, scene.signal.center_frequency_hz)

@@ -1,0 +1,122 @@
+"""Reading a scene file: YAML with line numbers, validation, file checks, physics warnings."""
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+from acoustics.scene.checks import cross_check
+from acoustics.scene.errors import SceneError, SceneWarning
+from acoustics.scene.schema import Scene
+from processing.config import ConfigError, read_yaml
+
+__all__ = ["load_scene", "scene_from_text", "scene_from_resolved_text", "validate_scene", "mesh_files",
+           "key_tuple"]
+
+
+def validate_scene(data, *, file, marks=None, source_path=None) -> Scene:
+    """Validate scene data (a dict as YAML gives it); see :meth:`Scene.validated`."""
+    return Scene.validated(data, file=file, marks=marks, source_path=source_path)
+
+
+def scene_from_resolved_text(text: str, *, source_path=None) -> Scene:
+    """A scene from the resolved YAML a run recorded (:meth:`Scene.resolved_text`).
+
+    Parameters
+    ----------
+    text : str
+    source_path : str or Path, optional
+        The scene file it came from (mesh paths resolve relative to its folder).
+
+    Raises
+    ------
+    SceneError
+    """
+    import yaml
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise SceneError(f"{source_path or '<scene text>'}: not a YAML scene ({exc.__class__.__name__})") from None
+    return Scene.validated(data, file=source_path or "<scene>", source_path=source_path)
+
+
+def load_scene(path: str | Path, *, check: bool = True) -> Scene:
+    """Read, validate and resolve a scene file.
+
+    Parameters
+    ----------
+    path : str or Path
+        A YAML scene file. Mesh paths inside it resolve relative to its folder.
+    check : bool
+        Run the physics cross-checks, which emit :class:`SceneWarning` (never fail).
+
+    Returns
+    -------
+    Scene
+        Frozen; SI units, angles in radians.
+
+    Raises
+    ------
+    SceneError
+        Unreadable file, YAML syntax error, unknown key, wrong type, bad value. The
+        message names the file, line, key path, value and what is accepted.
+    """
+    path = Path(path)
+    try:
+        data, marks = read_yaml(path)
+    except ConfigError as exc:
+        raise SceneError(str(exc)) from None
+    if data is None:
+        raise SceneError(f"{path}: the file is empty; a scene needs at least 'name'")
+    scene = validate_scene(data, file=path, marks=marks, source_path=path.resolve())
+    _check_files(scene, path, marks)
+    if check:
+        for message, key in cross_check(scene):
+            line = marks.get(tuple(key_tuple(key)))
+            where = f"{path}:{line}" if line else str(path)
+            warnings.warn(f"{where}: {key}: {message}", SceneWarning, stacklevel=2)
+    return scene
+
+
+def mesh_files(scene: Scene):
+    """(key, path written in the scene) of every file a scene's meshes read."""
+    items = [(f"boundaries[{i}]", b) for i, b in enumerate(scene.boundaries)]
+    items += [(f"targets.meshes[{i}]", t) for i, t in enumerate(scene.targets.meshes)]
+    for key, spec in items:
+        file = getattr(spec.mesh, "file", None)
+        if file is not None:
+            yield f"{key}.mesh.file", file
+
+
+def _check_files(scene: Scene, path: Path, marks):
+    """A missing mesh or height-grid file is a scene error at load, not a surprise mid-run."""
+    for key, file in mesh_files(scene):
+        target = scene.resolve_path(file)
+        if not target.is_file():
+            line = marks.get(tuple(key_tuple(key)))
+            where = f"{path}:{line}" if line else str(path)
+            raise SceneError(f"{where}: {key}: file {file!r} not found (looked for {target}); "
+                             f"paths are relative to the scene file's folder")
+
+
+def scene_from_text(text: str, *, name: str = "<text>", check: bool = False) -> Scene:
+    """Validate a scene given as YAML text (tests, notebooks)."""
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        p = Path(tmp) / "scene.yaml"
+        p.write_text(text)
+        try:
+            return load_scene(p, check=check)
+        except SceneError as exc:
+            raise SceneError(str(exc).replace(str(p), name), exc.problems) from None
+
+
+def key_tuple(key: str):
+    out = []
+    for part in key.replace("]", "").split("."):
+        if "[" in part:
+            head, *idx = part.split("[")
+            out.append(head)
+            out.extend(int(i) for i in idx)
+        else:
+            out.append(part)
+    return out

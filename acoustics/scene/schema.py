@@ -1,0 +1,346 @@
+"""The scene file's schema: the root :class:`Scene` and its small sections.
+
+A scene file is YAML with the sections ``schema_version``, ``name``, ``description``,
+``seed``, ``sonar``, ``signal``, ``sampling``, ``medium``, ``noise``, ``targets``,
+``boundaries``, ``pings``, ``effects`` and ``processing``. :func:`load_scene` returns a
+frozen, validated :class:`Scene` with every default filled in (``abacus scene show``
+prints it). Units are SI; angles are written in degrees under ``*_deg`` keys and held in
+radians. The JSON Schema of the file is ``scenes/scene.schema.json`` (:func:`json_schema`).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from pydantic import Field, PrivateAttr, model_validator
+
+from acoustics.medium import francois_garrison_db_per_m, mackenzie_sound_speed_m_s
+from acoustics.scene.meshes_spec import BoundarySpec, ReverberationSpec
+from acoustics.scene.sonar_spec import SonarSpec
+from acoustics.scene.targets_spec import TargetsSpec
+from acoustics.sonar import preset
+from processing.config import (ConfigError, ConfigModel, Count, NonNegativeReal, PositiveCount,
+                               PositiveReal, Real, dump_yaml, validate_file)
+from processing.settings import ProcessingSettings
+
+__all__ = ["SCHEMA_VERSION", "Scene", "SignalSpec", "AdcSpec", "SamplingSpec", "MediumSpec",
+           "NoiseSpec", "PingsSpec", "EffectsSpec", "json_schema", "json_schema_text"]
+
+SCHEMA_VERSION = 1
+
+
+def _is_num(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+
+# ------------------------------------------------------------- signal, sampling
+
+
+class SignalSpec(ConfigModel):
+    """The transmit pulse (thesis eq. 2.24–2.27, Table 3.1)."""
+
+    kind: Literal["lfm"] = "lfm"
+    """Linear frequency modulation from f0 - B/2 to f0 + B/2 (``sweep: down`` reverses)."""
+    center_frequency_hz: PositiveReal = preset.CENTER_FREQUENCY_HZ
+    bandwidth_hz: NonNegativeReal = preset.BANDWIDTH_HZ
+    """Swept bandwidth B (Hz); 0 gives a CW pulse."""
+    duration_s: PositiveReal = preset.PULSE_DURATION_S
+    taper: Literal["sqrt_hann", "hann", "hamming", "tukey", "rectangular"] = "sqrt_hann"
+    """Amplitude taper; the thesis' square root of a Hann window (eq. 4.20) by default."""
+    sweep: Literal["up", "down"] = "up"
+
+
+class AdcSpec(ConfigModel):
+    """From pressure to ADC counts (thesis §3.6)."""
+
+    scale_counts: PositiveReal = preset.ADC_SCALE_COUNTS
+    """k: counts per unit of pressure, where a transmit element driven at unit amplitude gives
+    pressure 1 at 1 m on its axis (the thesis' k maps transmitter volts to ADC counts)."""
+    quantize: bool = False
+    """Round to integers and clip to the signed range of ``bits`` (per I and Q)."""
+    bits: PositiveCount = Field(preset.ADC_BITS, le=32)
+
+
+class SamplingSpec(ConfigModel):
+    """Complex baseband sampling (Table 3.4). t = 0 is the start of transmission."""
+
+    rate_hz: PositiveReal = preset.SAMPLE_RATE_HZ
+    samples: PositiveCount = preset.SAMPLES_PER_PING
+    time_offset_s: NonNegativeReal = 0.0
+    """Time (s) of sample 0 after the start of transmission."""
+    receiver_bandwidth_hz: PositiveReal | None = None
+    """Receiver (anti-alias) band, centred on the carrier; default rate_hz / 2, the widest
+    band real bandpass sampling at rate_hz allows."""
+    adc: AdcSpec = AdcSpec()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _fill_band(cls, data):
+        if isinstance(data, dict) and data.get("receiver_bandwidth_hz") is None:
+            rate = data.get("rate_hz", preset.SAMPLE_RATE_HZ)
+            if isinstance(rate, (int, float)) and not isinstance(rate, bool) and rate > 0:
+                data = {**data, "receiver_bandwidth_hz": float(rate) / 2}
+        return data
+
+
+class MediumSpec(ConfigModel):
+    """Homogeneous water. Sound speed given, or by Mackenzie (1981) when null; absorption
+    given (dB/m), or by Francois & Garrison (1982) at the carrier when null."""
+
+    sound_speed_m_s: PositiveReal | None = preset.SOUND_SPEED_M_S
+    absorption_db_per_m: NonNegativeReal | None = None
+    temperature_c: Real = Field(10.0, ge=-2.0, le=40.0)
+    salinity_psu: Real = Field(35.0, ge=0.0, le=45.0)
+    depth_m: NonNegativeReal = 20.0
+    """Depth (m) at which absorption is evaluated."""
+    ph: Real = Field(8.0, ge=6.0, le=9.5)
+
+
+class NoiseSpec(ConfigModel):
+    """Receiver and ambient noise: complex white Gaussian, band-limited (thesis §2.4.2)."""
+
+    enabled: bool = False
+    sigma_counts: NonNegativeReal = preset.NOISE_SIGMA_COUNTS
+    """Standard deviation (ADC counts) of each quadrature component (I and Q) of a
+    channel, after band-limiting; the thesis' 126.68 by default."""
+    bandwidth_hz: PositiveReal | None = None
+    """Noise band centred on the carrier; default the receiver bandwidth."""
+
+
+# ------------------------------------------------------------------ the rest
+
+
+class PingsSpec(ConfigModel):
+    """Which pings a run computes (each ping is seeded by (seed, ping index))."""
+
+    count: PositiveCount = 1
+    first: Count = 0
+    """Index of the first ping; pings first .. first + count - 1."""
+    interval_s: PositiveReal = preset.PING_INTERVAL_S
+    """Ping interval (s); ABACUS runs at 1 Hz."""
+    start_time: str = "2000-01-01T00:00:00"
+    """Time of ping 0 (ISO 8601, UTC); ping p is at start_time + p x interval_s."""
+
+    @model_validator(mode="after")
+    def _time(self):
+        try:
+            np.datetime64(self.start_time, "ns")
+        except ValueError:
+            raise ValueError("start_time must be an ISO 8601 time such as "
+                             "2000-01-01T00:00:00") from None
+        return self
+
+
+class EffectsSpec(ConfigModel):
+    """Fidelity settings and switches of the forward model (docs/accuracy.md)."""
+
+    directivity: Literal["far_field", "huygens"] = "far_field"
+    """Element directivity: analytic far field, or Huygens sub-pistons (near-field exact)."""
+    huygens_subdivisions: tuple[PositiveCount, PositiveCount] = (4, 4)
+    """Sub-pistons per element along local x and y (huygens only)."""
+    baffle: bool = True
+    """Elements do not radiate behind their plane."""
+    synthesis: Literal["fast", "exact"] = "fast"
+    """Echo synthesis: fractional-delay kernel + FFT convolution, or exact evaluation."""
+    kernel_length: PositiveCount = Field(8, ge=2, le=64)
+    """Windowed-sinc fractional-delay kernel length in fine-grid samples (fast only)."""
+    oversampling: PositiveCount = Field(2, le=16)
+    """Fast synthesis runs on a grid this many times finer than the samples (fast only)."""
+    spreading: bool = True
+    """Spherical spreading 1/r per leg."""
+    absorption: bool = True
+    """Absorption 10^(-α r/20) per leg."""
+    occlusion: bool = True
+    """Point targets whose transmit or receive path a mesh blocks give no direct echo (only
+    with meshes in the scene)."""
+    multipath_order: Count = Field(0, le=3)
+    """Specular bounces per leg on planar boundaries (0: none; 1: Tx→boundary→target→Rx,
+    Tx→target→boundary→Rx and both)."""
+    reverberation: ReverberationSpec = ReverberationSpec()
+    ray_threads: PositiveCount | None = None
+    """Threads for ray batches (default: every core)."""
+
+
+class Scene(ConfigModel):
+    """A complete scene. Build one with :func:`load_scene`."""
+
+    schema_version: Literal[1] = 1
+    name: str = Field(min_length=1)
+    description: str = ""
+    seed: Count = 0
+    """Root of every random draw: ping p draws from (seed, p, stream)."""
+    sonar: SonarSpec = SonarSpec()
+    signal: SignalSpec = SignalSpec()
+    sampling: SamplingSpec = SamplingSpec()
+    medium: MediumSpec = MediumSpec()
+    noise: NoiseSpec = NoiseSpec()
+    targets: TargetsSpec = TargetsSpec()
+    boundaries: tuple[BoundarySpec, ...] = ()
+    pings: PingsSpec = PingsSpec()
+    effects: EffectsSpec = EffectsSpec()
+    processing: ProcessingSettings = ProcessingSettings()
+
+    _source_path: Path | None = PrivateAttr(default=None)
+    _resolved_text: str | None = PrivateAttr(default=None)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _resolve_environment(cls, data):
+        """Fill values computed from other sections, so that a resolved scene is explicit:
+        Mackenzie sound speed, F&G absorption at the carrier, the noise band."""
+        if not isinstance(data, dict):
+            return data
+        sections = {k: data.get(k) if data.get(k) is not None else {}
+                    for k in ("medium", "signal", "sampling", "noise")}
+        if not all(isinstance(v, dict) for v in sections.values()):
+            return data  # field validation will name the culprit
+        med, sig, samp, noise = (dict(sections[k]) for k in ("medium", "signal", "sampling", "noise"))
+        t, s, d, ph = (med.get(k, dflt) for k, dflt in
+                       (("temperature_c", 10.0), ("salinity_psu", 35.0), ("depth_m", 20.0), ("ph", 8.0)))
+        f0 = sig.get("center_frequency_hz", preset.CENTER_FREQUENCY_HZ)
+        if all(_is_num(v) for v in (t, s, d, ph, f0)) and f0 > 0 and s >= 0 and d >= 0:
+            if "sound_speed_m_s" in med and med["sound_speed_m_s"] is None:
+                med["sound_speed_m_s"] = round(float(mackenzie_sound_speed_m_s(t, s, d)), 6)
+            if med.get("absorption_db_per_m") is None:
+                # F&G with its own sound-speed fit, as the formula was calibrated
+                alpha = francois_garrison_db_per_m(f0, t, s, d, ph)
+                med["absorption_db_per_m"] = float(f"{float(alpha):.6g}")
+        if noise.get("bandwidth_hz") is None:
+            band, rate = samp.get("receiver_bandwidth_hz"), samp.get("rate_hz", preset.SAMPLE_RATE_HZ)
+            if band is None and _is_num(rate):
+                band = rate / 2
+            if _is_num(band):
+                noise["bandwidth_hz"] = float(band)
+        return {**data, "medium": med, "noise": noise}
+
+    # ------------------------------------------------------------------ helpers
+    @classmethod
+    def validated(cls, data, *, file, marks=None, source_path=None) -> "Scene":
+        """Validate scene data (a dict as YAML gives it).
+
+        Parameters
+        ----------
+        data : dict
+        file : str or Path
+            Names the data in messages.
+        marks : dict, optional
+            Line number per key path (from :func:`processing.config.read_yaml`).
+        source_path : Path, optional
+            The file the scene belongs to: mesh paths resolve relative to its folder.
+
+        Raises
+        ------
+        SceneError
+            Every problem at once, each with file, line, key path and what is accepted.
+        """
+        from acoustics.scene.errors import SceneError
+        try:
+            scene = validate_file(cls, data, file=file, marks={} if marks is None else marks)
+        except ConfigError as exc:
+            raise SceneError(str(exc), exc.problems) from None
+        scene._source_path = None if source_path is None else Path(source_path)
+        return scene
+
+    def with_updates(self, updates: dict, *, what: str = "updates") -> "Scene":
+        """A new scene with ``updates`` applied and validated again (the source path is kept).
+
+        Parameters
+        ----------
+        updates : dict
+            ``{dotted key path: value}`` in the file's own keys and units, e.g.
+            ``{"noise.sigma_counts": 100, "targets.populations[0].count": 20,
+            "processing.detect.pfa_image": 1e-6}``.
+        what : str
+            Names the change in error messages (e.g. ``"--sweep noise.sigma_counts=..."``).
+
+        Raises
+        ------
+        SceneError
+            A key that is not in the scene, or a value the schema refuses.
+        """
+        import yaml
+
+        from acoustics.scene.errors import SceneError
+        data = yaml.safe_load(self.resolved_text())
+        for path, value in updates.items():
+            keys = _split_key_path(path)
+            node = data
+            for k in keys[:-1]:
+                try:
+                    node = node[k]
+                except (KeyError, IndexError, TypeError):
+                    raise SceneError(f"{what}: {path!r} is not a key of the scene (at {k!r}); "
+                                     f"see `abacus scene show` for the keys") from None
+            if isinstance(node, dict) and keys[-1] not in node:
+                raise SceneError(f"{what}: {path!r} is not a key of the scene (no {keys[-1]!r}); "
+                                 f"see `abacus scene show` for the keys")
+            try:
+                node[keys[-1]] = value
+            except (IndexError, TypeError):
+                raise SceneError(f"{what}: {path!r} is not a key of the scene") from None
+        return Scene.validated(data, file=f"{self.source_path or '<scene>'} ({what})",
+                               source_path=self.source_path)
+
+    @property
+    def source_path(self) -> Path | None:
+        """The file this scene was read from (None when built from text)."""
+        return self._source_path
+
+    def resolve_path(self, path: str) -> Path:
+        """A path written in the scene, relative to the scene file's folder."""
+        p = Path(path)
+        if p.is_absolute() or self._source_path is None:
+            return p
+        return self._source_path.parent / p
+
+    def model_copy(self, *, update=None, deep: bool = False):
+        """A copy (with ``update``); the cached resolved text is not carried over."""
+        out = super().model_copy(update=update, deep=deep)
+        out._resolved_text = None
+        return out
+
+    def resolved_text(self) -> str:
+        """The fully resolved scene as YAML, every default filled in (round-trips)."""
+        if self._resolved_text is None:  # frozen: compute once (YAML dumping is slow)
+            self._resolved_text = dump_yaml(self.model_dump(mode="json", by_alias=True))
+        return self._resolved_text
+
+    def sha256(self) -> str:
+        """SHA-256 of :meth:`resolved_text` (identifies what a run really used)."""
+        return hashlib.sha256(self.resolved_text().encode()).hexdigest()
+
+    @property
+    def wavelength_m(self) -> float:
+        return self.medium.sound_speed_m_s / self.signal.center_frequency_hz
+
+
+def _split_key_path(path: str) -> list:
+    """``"targets.populations[0].count"`` → ``["targets", "populations", 0, "count"]``."""
+    out = []
+    for part in path.split("."):
+        while "[" in part:
+            head, rest = part.split("[", 1)
+            if head:
+                out.append(head)
+            idx, part = rest.split("]", 1)
+            out.append(int(idx))
+        if part:
+            out.append(part)
+    return out
+
+
+def json_schema() -> dict:
+    """JSON Schema of the scene file (aliases, i.e. the keys a file uses)."""
+    schema = Scene.model_json_schema(by_alias=True, mode="validation")
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "abacus scene file"
+    return schema
+
+
+def json_schema_text() -> str:
+    return json.dumps(json_schema(), indent=2, sort_keys=False) + "\n"

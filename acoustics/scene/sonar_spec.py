@@ -1,0 +1,197 @@
+"""The ``sonar`` section of a scene file: the ABACUS preset or explicit arrays, and the pose."""
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import numpy as np
+from pydantic import Field, model_validator
+
+from acoustics.sonar import preset
+from acoustics.sonar.arrays import ElementArray
+from processing.config import AngleDeg, ConfigModel, Count, PositiveCount, PositiveReal, Real, Vec3
+
+__all__ = ["PoseSpec", "ElementSpec", "LineSpec", "ArraySpec", "ReceiverSpec", "PresetGeometry",
+           "SonarSpec"]
+
+
+class PoseSpec(ConfigModel):
+    """Where the sonar is and where it looks, in the world frame (x forward, y starboard,
+    z down). The default looks straight down from the surface with the receiver axis
+    (azimuth) athwartships to starboard, as a hull-mounted counting sonar."""
+
+    position_m: Vec3 = (0.0, 0.0, 0.0)
+    """World position (m) of the sonar-frame origin (the transmitter's phase centre)."""
+    boresight: Vec3 = (0.0, 0.0, 1.0)
+    """World direction of the boresight +z_s (normalised on load)."""
+    receiver_axis: Vec3 = (0.0, 1.0, 0.0)
+    """World direction of +x_s, along the receiver subarrays (positive azimuth)."""
+
+    @model_validator(mode="after")
+    def _axes(self):
+        z, x = np.asarray(self.boresight), np.asarray(self.receiver_axis)
+        if np.linalg.norm(z) == 0 or np.linalg.norm(x) == 0:
+            raise ValueError("boresight and receiver_axis must be non-zero vectors")
+        cos = abs(float(z @ x)) / (np.linalg.norm(z) * np.linalg.norm(x))
+        if cos > 1e-6:
+            raise ValueError(f"boresight and receiver_axis must be perpendicular "
+                             f"(they are {math.degrees(math.acos(min(cos, 1.0))):.4g}° apart)")
+        return self
+
+
+class ElementSpec(ConfigModel):
+    """One rectangular piston element, facing +z_s."""
+
+    center_m: Vec3
+    """Centre (m) in the sonar frame."""
+    width_m: PositiveReal
+    """Size (m) along the element's local x."""
+    height_m: PositiveReal
+    """Size (m) along the element's local y."""
+    rotation: AngleDeg(-360, 360) = Field(0.0, alias="rotation_deg")
+    """In-plane rotation (deg) of local x from +x towards +y."""
+    weight: Real = 1.0
+    """Amplitude weight."""
+
+
+class LineSpec(ConfigModel):
+    """A regular line of identical elements (a compact way to write an array)."""
+
+    count: PositiveCount
+    pitch_m: PositiveReal
+    axis: Literal["x", "y"]
+    """Direction of the line in the sonar frame."""
+    width_m: PositiveReal
+    height_m: PositiveReal
+    center_m: Vec3 = (0.0, 0.0, 0.0)
+    rotation: AngleDeg(-360, 360) = Field(0.0, alias="rotation_deg")
+    stagger_m: Real = 0.0
+    """Alternate ±offset (m) across the line, in the array plane (first element +)."""
+
+
+class ArraySpec(ConfigModel):
+    """An explicit array: either ``elements`` or ``line``."""
+
+    elements: tuple[ElementSpec, ...] | None = None
+    line: LineSpec | None = None
+
+    @model_validator(mode="after")
+    def _one_form(self):
+        if (self.elements is None) == (self.line is None):
+            raise ValueError("give exactly one of 'elements' (a list) or 'line'")
+        if self.elements is not None and len(self.elements) == 0:
+            raise ValueError("elements is empty; an array needs at least one element")
+        return self
+
+    def build(self, name: str) -> ElementArray:
+        if self.line is not None:
+            ln = self.line
+            s = (np.arange(ln.count) - (ln.count - 1) / 2) * ln.pitch_m
+            alt = ln.stagger_m * np.where(np.arange(ln.count) % 2 == 0, 1.0, -1.0)
+            along = np.array([1.0, 0, 0]) if ln.axis == "x" else np.array([0, 1.0, 0])
+            across = np.array([0, 1.0, 0]) if ln.axis == "x" else np.array([1.0, 0, 0])
+            c = np.asarray(ln.center_m) + s[:, None] * along + alt[:, None] * across
+            return ElementArray(c, ln.width_m, ln.height_m, ln.rotation, 1.0, name)
+        e = self.elements
+        return ElementArray([x.center_m for x in e], [x.width_m for x in e],
+                                    [x.height_m for x in e], [x.rotation for x in e],
+                                    [x.weight for x in e], name)
+
+
+class ReceiverSpec(ConfigModel):
+    """Explicit receiver subarrays and the recorded channels."""
+
+    A: ArraySpec
+    B: ArraySpec | None = None
+    channels_A: tuple[Count, ...] | None = None
+    """Recorded elements of A (indices); default all."""
+    channels_B: tuple[Count, ...] | None = None
+    """Recorded elements of B (indices); default all."""
+
+    @model_validator(mode="after")
+    def _channels_exist(self):
+        for name in ("A", "B"):
+            arr, chosen = getattr(self, name), getattr(self, f"channels_{name}")
+            if chosen is None:
+                continue
+            if arr is None:
+                raise ValueError(f"channels_{name} given but there is no subarray {name}")
+            n = len(arr.elements) if arr.elements is not None else arr.line.count
+            bad = [i for i in chosen if i >= n]
+            if bad:
+                raise ValueError(f"channels_{name} lists element(s) {bad}; subarray {name} has "
+                                 f"{n} elements (indices 0..{n - 1})")
+            if len(set(chosen)) != len(chosen):
+                raise ValueError(f"channels_{name} lists an element twice")
+        return self
+
+
+class PresetGeometry(ConfigModel):
+    """Dimensions the ABACUS preset leaves adjustable (defaults depend on ``variant``;
+    docs/arrays.md explains each choice)."""
+
+    transmitter_stagger_m: Real
+    """Transmitter elements shifted alternately ±this along x (abacus 0.0015, generic 0)."""
+    transmitter_rotated_end_elements: Count = Field(le=8)
+    """Elements rotated 90° at each end of the transmitter (abacus 3, generic 0)."""
+    receiver_stagger_m: Real
+    """Receiver elements shifted alternately ±this along y (abacus 0.002, generic 0)."""
+    subarray_b_offset_m: Real
+    """Shift of subarray B relative to A along x (abacus 0.0075 = d/2, generic 0)."""
+    baseline_m: PositiveReal = preset.BASELINE_M
+    """Separation of subarrays A and B along y."""
+
+
+def _preset_defaults(variant: str) -> dict:
+    abacus = variant != "generic"
+    return {"transmitter_stagger_m": preset.TX_STAGGER_M if abacus else 0.0,
+            "transmitter_rotated_end_elements": 3 if abacus else 0,
+            "receiver_stagger_m": preset.RX_STAGGER_M if abacus else 0.0,
+            "subarray_b_offset_m": preset.SUBARRAY_B_OFFSET_M if abacus else 0.0,
+            "baseline_m": preset.BASELINE_M}
+
+
+class SonarSpec(ConfigModel):
+    """The sonar: the ABACUS preset (``preset: abacus``) or explicit arrays
+    (``preset: null`` with ``transmitter`` and ``receiver``)."""
+
+    preset: Literal["abacus"] | None = "abacus"
+    variant: Literal["generic", "abacus"] = "abacus"
+    """Preset geometry: generic straight lines or the ABACUS layout (stagger, rotation)."""
+    preset_geometry: PresetGeometry | None = None
+    """Preset dimensions; filled from ``variant`` where not given."""
+    transmitter: ArraySpec | None = None
+    receiver: ReceiverSpec | None = None
+    mode: Literal["interferometric", "normal", "combined"] = "interferometric"
+    """interferometric: middle 8 of A and B, two images; normal: 16 of A; combined:
+    8 + 8 as one image."""
+    pose: PoseSpec = PoseSpec()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _fill_preset(cls, data):
+        if isinstance(data, dict) and data.get("preset", "abacus") == "abacus":
+            variant = data.get("variant", "abacus")
+            geo = data.get("preset_geometry")
+            if geo is None or isinstance(geo, dict):
+                filled = _preset_defaults(variant if isinstance(variant, str) else "abacus")
+                filled.update(geo or {})
+                data = {**data, "preset_geometry": filled}
+        return data
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        if self.preset is not None:
+            if self.transmitter is not None or self.receiver is not None:
+                raise ValueError("preset 'abacus' builds the arrays: remove 'transmitter' and "
+                                 "'receiver', or set 'preset: null' to give them explicitly")
+        else:
+            if self.transmitter is None or self.receiver is None:
+                raise ValueError("with 'preset: null' both 'transmitter' and 'receiver' are "
+                                 "required")
+            if self.preset_geometry is not None:
+                raise ValueError("'preset_geometry' applies to the preset only")
+            if self.mode in ("interferometric", "combined") and self.receiver.B is None:
+                raise ValueError(f"mode '{self.mode}' needs two subarrays: add receiver.B, or "
+                                 "use mode 'normal'")
+        return self

@@ -1,0 +1,22 @@
+"""Seeding: every random draw of a simulation comes from (scene seed, ping, stream, group).
+
+``default_rng(SeedSequence([seed, ping, stream, group]))`` makes a ping depend only on the scene
+seed and that ping's index, whatever the order pings run in or the number of workers; a named
+stream per purpose means adding a new kind of draw never shifts an existing one.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["FIXED", "STREAMS", "ping_rng"]
+
+#: stands for the ping index in the seed of draws that do not change between pings
+FIXED = 2**31 - 1
+#: purpose of each random stream (part of the seed, so adding a stream never shifts another)
+STREAMS = {"positions": 1, "count": 2, "backscatter": 3, "phase": 4, "noise": 5, "reverberation": 6}
+
+
+def ping_rng(seed: int, ping: int, stream: str, group: int = 0) -> np.random.Generator:
+    """The generator for one purpose of one ping (see module docstring)."""
+    return np.random.default_rng(np.random.SeedSequence([int(seed), int(ping), STREAMS[stream],
+                                                         int(group)]))

@@ -1,0 +1,209 @@
+"""Assemble a simulation into the data contract of processing.dataset (SONAR-netCDF4 flavour)."""
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import platform
+import sys
+
+import numpy as np
+import xarray as xr
+
+from processing.dataset import CONVENTIONS, ELEMENT_GROUP, TRUTH_GROUP, split_complex
+
+from acoustics.frames import cartesian_to_spherical
+from acoustics.sonar.calibration import sonar_calibration
+
+__all__ = ["build_tree", "provenance_dataset", "versions", "rays_cast"]
+
+
+def versions() -> dict:
+    """Versions of everything that shapes the numbers."""
+    import numba
+    import scipy
+    from acoustics import __version__
+    return {"abacus": __version__, "python": platform.python_version(), "numpy": np.__version__,
+            "scipy": scipy.__version__, "numba": numba.__version__, "xarray": xr.__version__,
+            "platform": platform.platform()}
+
+
+def provenance_dataset(scene, seed: int, log, rays_cast: dict | None = None) -> xr.Dataset:
+    """/Provenance: resolved scene, its sha256, the seed, versions, stages and their times."""
+    names = log.names
+    return xr.Dataset(
+        {"stage_seconds": xr.DataArray(np.array([log.seconds[k] for k in names]), dims="stage",
+                                       attrs={"units": "s", "long_name": "wall time per stage"}),
+         "stage_calls": xr.DataArray(np.array([log.calls[k] for k in names]), dims="stage")},
+        coords={"stage": np.array(names, dtype=str)},
+        attrs={"scene_text": scene.resolved_text(), "scene_sha256": scene.sha256(),
+               "scene_file": str(scene.source_path or ""), "seed": int(seed),
+               "stages_run": ",".join(names), "versions": json.dumps(versions()),
+               "rays_cast_json": json.dumps(rays_cast or {}),
+               "command": " ".join(sys.argv)})
+
+
+def _ping_times(scene, pings):
+    start = np.datetime64(scene.pings.start_time, "ns")
+    step = np.timedelta64(int(round(scene.pings.interval_s * 1e9)), "ns")
+    return start + np.asarray(pings, np.int64) * step
+
+
+def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.DataTree:
+    """The DataTree of one simulation run (see processing.dataset for the layout)."""
+    sonar, medium, pulse = setup.sonar, setup.medium, setup.pulse
+    s = scene.sampling
+    ping_time = _ping_times(scene, pings)
+    rx = sonar.receiver
+    el = rx.elements
+    n_ch = el.n_elements
+    chan_names = np.array([f"{sub}{idx}" for sub, idx in rx.channels])
+    now = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()
+
+    root = xr.Dataset(attrs={
+        "conventions": CONVENTIONS, "keywords": "sonar, multibeam, ABACUS, simulation, fisheries acoustics",
+        "title": f"abacus simulation: {scene.name}", "summary": scene.description.strip() or scene.name,
+        "date_created": now, "software_name": "abacus",
+        "software_version": versions()["abacus"], "data_kind": "simulated"})
+
+    env = xr.Dataset({
+        "sound_speed_indicative": xr.DataArray(medium.sound_speed_m_s, attrs={"units": "m/s"}),
+        "absorption_indicative": xr.DataArray(medium.absorption_db_per_m,
+                                              attrs={"units": "dB/m", "frequency_hz": pulse.center_frequency_hz}),
+        "temperature": xr.DataArray(medium.temperature_c, attrs={"units": "degree_Celsius"}),
+        "salinity": xr.DataArray(medium.salinity_psu, attrs={"units": "PSU"}),
+        "depth": xr.DataArray(medium.depth_m, attrs={"units": "m", "long_name": "depth at which absorption was evaluated"}),
+        "ph": xr.DataArray(medium.ph)})
+
+    pose = sonar.pose
+    platform_ds = xr.Dataset({
+        "sonar_position": xr.DataArray(pose.position_m, dims="world_axis",
+                                       attrs={"units": "m", "long_name": "sonar-frame origin in the world frame (x forward, y starboard, z down)"}),
+        "sonar_rotation": xr.DataArray(pose.rotation, dims=("world_axis", "sonar_axis"),
+                                       attrs={"long_name": "columns: sonar axes x_s, y_s, z_s in world coordinates"})},
+        coords={"world_axis": ["x", "y", "z"], "sonar_axis": ["x", "y", "z"]})
+
+    tx = sonar.transmitter
+    replica = pulse.replica(s.rate_hz)
+    cal_gain, cal_az, cal_width = sonar_calibration(
+        tx, sonar.receiver.elements, wavenumber_rad_m=setup.model.wavenumber_rad_m,
+        scale_counts=setup.model.scale_counts)
+    sonar_ds = xr.Dataset(
+        {"transmit_frequency_start": xr.DataArray(pulse.center_frequency_hz - np.sign(pulse.chirp_rate_hz_s or 1) * pulse.bandwidth_hz / 2, attrs={"units": "Hz"}),
+         "transmit_frequency_stop": xr.DataArray(pulse.center_frequency_hz + np.sign(pulse.chirp_rate_hz_s or 1) * pulse.bandwidth_hz / 2, attrs={"units": "Hz"}),
+         "transmit_frequency_center": xr.DataArray(pulse.center_frequency_hz, attrs={"units": "Hz"}),
+         "transmit_bandwidth": xr.DataArray(pulse.bandwidth_hz, attrs={"units": "Hz"}),
+         "transmit_duration_nominal": xr.DataArray(pulse.duration_s, attrs={"units": "s"}),
+         "beamwidth_transmit_major": xr.DataArray(np.degrees(setup.tx_beamwidth_az_rad),
+                                                  attrs={"units": "arc_degree", "long_name": "transmit 3 dB beamwidth in azimuth (sonar x-z plane)"}),
+         "beamwidth_transmit_minor": xr.DataArray(np.degrees(setup.tx_beamwidth_el_rad),
+                                                  attrs={"units": "arc_degree", "long_name": "transmit 3 dB beamwidth in elevation"}),
+         **split_complex("replica", replica, ("replica_sample",),
+                         {"long_name": "transmit pulse u(j/fs), complex baseband", "units": "1"}),
+         "tx_element_x": xr.DataArray(tx.center_m[:, 0], dims="tx_element", attrs={"units": "m"}),
+         "tx_element_y": xr.DataArray(tx.center_m[:, 1], dims="tx_element", attrs={"units": "m"}),
+         "tx_element_z": xr.DataArray(tx.center_m[:, 2], dims="tx_element", attrs={"units": "m"}),
+         "tx_element_width": xr.DataArray(tx.width_m, dims="tx_element", attrs={"units": "m"}),
+         "tx_element_height": xr.DataArray(tx.height_m, dims="tx_element", attrs={"units": "m"}),
+         "tx_element_rotation": xr.DataArray(tx.rotation_rad, dims="tx_element", attrs={"units": "rad"}),
+         "tx_element_weight": xr.DataArray(tx.weight, dims="tx_element"),
+         "calibration_gain": xr.DataArray(cal_gain, attrs={
+             "units": "counts m", "long_name": "G = k S: image peak of a target of backscatter "
+             "amplitude 1 m at 1 m on the transmit axis (see acoustics/calibration.py)"}),
+         "two_way_elevation_width": xr.DataArray(cal_width, dims="calibration_azimuth", attrs={
+             "units": "rad", "long_name": "integral over elevation of |E_t|^2 |D_rx|^2 cos(elevation), "
+             "per azimuth: the sonar's part of echo integration's equivalent beam"})},
+        coords={"channel_all": chan_names, "replica_sample": np.arange(replica.size),
+                "calibration_azimuth": xr.DataArray(cal_az, dims="calibration_azimuth",
+                                                    attrs={"units": "rad"})},
+        attrs={"transmit_type": "LFM", "taper": pulse.taper, "sweep": pulse.sweep,
+               "sonar_model": "ABACUS" if scene.sonar.preset == "abacus" else "custom",
+               "variant": scene.sonar.variant if scene.sonar.preset == "abacus" else "explicit",
+               "mode": rx.mode, "frame": "sonar frame: +z boresight, +x along the receiver, +y along the transmitter"})
+
+    eg = xr.Dataset(
+        {**split_complex("element", samples, ("ping_time", "rx_element", "range_sample"),
+                         {"units": "ADC counts", "long_name": "complex baseband samples per receiver element"}),
+         "element_x": xr.DataArray(el.center_m[:, 0], dims="rx_element", attrs={"units": "m"}),
+         "element_y": xr.DataArray(el.center_m[:, 1], dims="rx_element", attrs={"units": "m"}),
+         "element_z": xr.DataArray(el.center_m[:, 2], dims="rx_element", attrs={"units": "m"}),
+         "element_width": xr.DataArray(el.width_m, dims="rx_element", attrs={"units": "m"}),
+         "element_height": xr.DataArray(el.height_m, dims="rx_element", attrs={"units": "m"}),
+         "element_rotation": xr.DataArray(el.rotation_rad, dims="rx_element", attrs={"units": "rad"}),
+         "element_subarray": xr.DataArray(rx.channel_subarray.astype(str), dims="rx_element"),
+         "element_index_in_subarray": xr.DataArray(np.array([i for _, i in rx.channels]), dims="rx_element"),
+         "sample_interval": xr.DataArray(1.0 / s.rate_hz, attrs={"units": "s"}),
+         "sample_time_offset": xr.DataArray(s.time_offset_s, attrs={"units": "s", "long_name": "time of sample 0 after the start of transmission"})},
+        coords={"ping_time": ping_time, "ping_index": ("ping_time", np.asarray(pings, np.int64)),
+                "rx_element": np.arange(n_ch), "channel": ("rx_element", chan_names),
+                "range_sample": np.arange(s.samples)},
+        attrs={"mode": rx.mode, "adc_scale_counts": s.adc.scale_counts,
+               "adc_quantized": int(s.adc.quantize), "adc_bits": s.adc.bits,
+               "noise_enabled": int(scene.noise.enabled), "noise_sigma_counts": scene.noise.sigma_counts,
+               "noise_bandwidth_hz": scene.noise.bandwidth_hz,
+               "receiver_bandwidth_hz": s.receiver_bandwidth_hz})
+    if clipped is not None:
+        eg["adc_clipped_samples"] = xr.DataArray(clipped, dims=("ping_time", "rx_element"),
+                                                 attrs={"long_name": "samples clipped by the ADC (I or Q)"})
+
+    truth_ds = _truth(setup, pings, ping_time, truth)
+    tree = xr.DataTree.from_dict({
+        "/": root, "/Environment": env, "/Platform": platform_ds,
+        "/Provenance": provenance_dataset(scene, seed, log, rays_cast(setup)), "/Sonar": sonar_ds,
+        f"/{ELEMENT_GROUP}": eg, f"/{TRUTH_GROUP}": truth_ds})
+    return tree
+
+
+def rays_cast(setup) -> dict:
+    """Rays cast per purpose in a run (empty without meshes)."""
+    rs = setup.ray_scene
+    return dict(rs.caster.rays_cast) if rs is not None else {}
+
+
+def _truth(setup, pings, ping_time, truth) -> xr.Dataset:
+    n = [len(t) for t in truth]
+    ping_of = np.repeat(np.asarray(pings, np.int64), n)
+    if sum(n):
+        ps = np.concatenate([t.position_sonar_m for t in truth])
+        pw = np.concatenate([t.position_world_m for t in truth])
+        rho = np.concatenate([t.rho_m for t in truth])
+        ph = np.concatenate([t.phase_rad for t in truth])
+        grp = np.concatenate([t.group for t in truth])
+        shd = np.concatenate([t.shadowed if t.shadowed is not None else np.zeros(len(t), bool) for t in truth])
+    else:
+        ps = pw = np.zeros((0, 3))
+        rho = ph = np.zeros(0)
+        grp = np.zeros(0, int)
+        shd = np.zeros(0, bool)
+    r, az, el = cartesian_to_spherical(ps)
+    volume = setup.counting_volume
+    inside = volume.contains(ps)
+    with np.errstate(divide="ignore"):
+        ts = np.where(rho > 0, 20 * np.log10(np.where(rho > 0, rho, 1.0)), -np.inf)
+    per_ping_in = np.array([int(v.sum()) for v in np.split(inside, np.cumsum(n)[:-1])]) if truth else np.zeros(0, int)
+    ds = xr.Dataset(
+        {"target_ping_index": xr.DataArray(ping_of, dims="target"),
+         "target_x": xr.DataArray(ps[:, 0], dims="target", attrs={"units": "m", "frame": "sonar"}),
+         "target_y": xr.DataArray(ps[:, 1], dims="target", attrs={"units": "m", "frame": "sonar"}),
+         "target_z": xr.DataArray(ps[:, 2], dims="target", attrs={"units": "m", "frame": "sonar"}),
+         "target_world_x": xr.DataArray(pw[:, 0], dims="target", attrs={"units": "m", "frame": "world"}),
+         "target_world_y": xr.DataArray(pw[:, 1], dims="target", attrs={"units": "m", "frame": "world"}),
+         "target_world_z": xr.DataArray(pw[:, 2], dims="target", attrs={"units": "m", "frame": "world (depth)"}),
+         "target_range": xr.DataArray(r, dims="target", attrs={"units": "m"}),
+         "target_azimuth": xr.DataArray(az, dims="target", attrs={"units": "rad"}),
+         "target_elevation": xr.DataArray(el, dims="target", attrs={"units": "rad"}),
+         "target_backscatter_amplitude": xr.DataArray(rho, dims="target", attrs={"units": "m", "long_name": "rho = sqrt(sigma_bs)"}),
+         "target_ts": xr.DataArray(ts, dims="target", attrs={"units": "dB re 1 m^2", "long_name": "-inf where rho = 0"}),
+         "target_phase": xr.DataArray(ph, dims="target", attrs={"units": "rad"}),
+         "target_group": xr.DataArray(grp, dims="target", attrs={"long_name": "-1 explicit point, else population index"}),
+         "target_in_counting_volume": xr.DataArray(inside.astype(np.int8), dims="target"),
+         "target_shadowed": xr.DataArray(shd.astype(np.int8), dims="target",
+                                         attrs={"long_name": "1 where a mesh blocks the direct path (no direct echo)"}),
+         "truth_count_total": xr.DataArray(np.asarray(n, np.int64), dims="ping_time"),
+         "truth_count_in_volume": xr.DataArray(per_ping_in.astype(np.int64), dims="ping_time")},
+        coords={"ping_time": ping_time},
+        attrs={"counting_volume": "transmitter 3 dB beam (azimuth, elevation) x image range limits",
+               "counting_range_m": list(volume.range_m),
+               "counting_azimuth_halfwidth_rad": volume.azimuth_halfwidth_rad,
+               "counting_elevation_halfwidth_rad": volume.elevation_halfwidth_rad,
+               "counting_volume_m3": volume.volume_m3})
+    return ds

@@ -1,0 +1,81 @@
+"""One ping: targets, paths, echoes, noise and ADC, each stage only when the scene needs it."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from acoustics.seeds import ping_rng
+from acoustics.simulation.setup import Setup
+from acoustics.simulation.stages import StageLog
+from acoustics.synthesis.receiver import band_limited_noise, quantize
+from acoustics.synthesis.scatterers import VirtualScatterers
+from acoustics.synthesis.synthesize import synthesize
+from acoustics.targets.draw import TargetSet, draw_targets
+
+__all__ = ["simulate_ping"]
+
+
+def _with_shadow(targets: TargetSet, shadowed):
+    """The target set with its shadowing recorded (ground truth)."""
+    return replace(targets, shadowed=np.asarray(shadowed, bool))
+
+
+def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
+                  log: StageLog | None = None):
+    """One ping.
+
+    Returns
+    -------
+    samples : ndarray, shape (n_channels, n_samples), complex128
+        ADC counts.
+    clipped : ndarray of int, shape (n_channels,), or None
+        Clipped samples per channel (None when the ADC does not quantise).
+    targets : TargetSet
+    """
+    seed = scene.seed if seed is None else int(seed)
+    log = log if log is not None else StageLog()
+    s, fx = scene.sampling, scene.effects
+    n_ch = setup.sonar.n_channels
+    with log.stage("targets"):
+        targets = draw_targets(scene, ping, setup.sonar.pose, seed=seed)
+    strength = targets.rho_m * np.exp(1j * targets.phase_rad)
+    rs = setup.ray_scene
+    shadowed = np.zeros(len(targets), bool)
+    if rs is not None and fx.occlusion and len(targets):
+        with log.stage("occlusion"):
+            shadowed = rs.shadowed(targets.position_sonar_m)
+    direct = ~shadowed
+    parts = [VirtualScatterers(targets.position_sonar_m[direct], targets.position_sonar_m[direct],
+                               strength[direct], np.full(int(direct.sum()), "direct"))]
+    if rs is not None and fx.multipath_order > 0 and rs.planes and len(targets):
+        with log.stage("multipath"):
+            parts.append(rs.multipath(targets.position_sonar_m, strength, fx.multipath_order))
+    if rs is not None and scene.targets.meshes:
+        with log.stage("mesh_targets"):
+            parts.append(rs.mesh_targets())
+    if rs is not None and fx.reverberation.enabled and scene.boundaries:
+        with log.stage("reverberation"):
+            parts.append(rs.reverberation(scene, setup, ping, seed))
+    vs = VirtualScatterers.concat(parts)
+    if len(vs):
+        with log.stage("echoes"):
+            bistatic = not np.array_equal(vs.p_tx, vs.p_rx)
+            x = synthesize(setup.model, vs.p_tx, vs.strength, pulse=setup.pulse,
+                           rate_hz=s.rate_hz, n_samples=s.samples, t0_s=s.time_offset_s,
+                           method=fx.synthesis, kernel_length=fx.kernel_length,
+                           oversampling=fx.oversampling,
+                           receive_positions_m=vs.p_rx if bistatic else None)
+    else:
+        x = np.zeros((n_ch, s.samples), complex)
+    targets = _with_shadow(targets, shadowed)
+    if scene.noise.enabled and scene.noise.sigma_counts > 0:
+        with log.stage("noise"):
+            x = x + band_limited_noise(ping_rng(seed, ping, "noise"), n_ch, s.samples,
+                                       sigma_counts=scene.noise.sigma_counts,
+                                       bandwidth_hz=scene.noise.bandwidth_hz, rate_hz=s.rate_hz)
+    clipped = None
+    if s.adc.quantize:
+        with log.stage("adc"):
+            x, clipped = quantize(x, s.adc.bits)
+    return x, clipped, targets

@@ -1,0 +1,96 @@
+"""What a simulation fixes once per run: arrays, medium, pulse, echo model, ray scene.
+
+Geometry-only results (transmit beamwidths, the calibration) are cached per process by the
+bytes of the geometry (:func:`acoustics.sonar.cache.per_geometry`), so scenes rebuilt from
+the same file hit the cache.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from acoustics.medium import Medium
+from acoustics.simulation.stages import StageLog
+from acoustics.sonar.beams import beamwidth
+from acoustics.sonar.build import Sonar, build_sonar
+from acoustics.sonar.cache import array_key, per_geometry
+from acoustics.sonar.pulse import Pulse
+from acoustics.synthesis.arrivals import EchoModel
+from processing.counting import CountingVolume, counting_volume
+
+__all__ = ["Setup", "make_setup", "counting_volume_of"]
+
+
+@dataclass(frozen=True, eq=False)
+class Setup:
+    """Everything fixed for a run of one scene."""
+
+    sonar: Sonar
+    medium: Medium
+    pulse: Pulse
+    model: EchoModel
+    tx_beamwidth_az_rad: float
+    tx_beamwidth_el_rad: float
+    counting_range_m: tuple
+    ray_scene: object = None
+
+    @property
+    def counting_volume(self) -> CountingVolume:
+        """The default counting volume (processing's definition, :mod:`processing.counting`)."""
+        return counting_volume(tx_beamwidth_az_rad=self.tx_beamwidth_az_rad,
+                               tx_beamwidth_el_rad=self.tx_beamwidth_el_rad,
+                               image_range_m=self.counting_range_m)
+
+
+def _tx_beamwidths(key, tx, c, f0):
+    def compute():
+        m = Medium(sound_speed_m_s=c)
+        return (beamwidth(tx, plane="azimuth", medium=m, frequency_hz=f0),
+                beamwidth(tx, plane="elevation", medium=m, frequency_hz=f0))
+    return per_geometry("tx_beamwidths", (key, c, f0), compute)
+
+
+def make_setup(scene, log: StageLog | None = None) -> Setup:
+    """Build the arrays, medium, pulse and echo model of a scene (once per run), and its ray
+    scene when it has meshes."""
+    sonar = build_sonar(scene)
+    medium = Medium.from_spec(scene.medium)
+    pulse = Pulse.from_spec(scene.signal)
+    fx = scene.effects
+    model = EchoModel(sonar.transmitter, sonar.receiver.elements, medium,
+                      scene.signal.center_frequency_hz, scene.sampling.adc.scale_counts,
+                      fx.directivity, tuple(fx.huygens_subdivisions), fx.baffle, fx.spreading,
+                      fx.absorption)
+    tx = sonar.transmitter
+    az, el = _tx_beamwidths(array_key(tx), tx, medium.sound_speed_m_s,
+                            scene.signal.center_frequency_hz)
+    rng_m = scene.processing.image.range_m
+    if rng_m is None:
+        c, s = medium.sound_speed_m_s, scene.sampling
+        rng_m = (c * s.time_offset_s / 2, c * (s.time_offset_s + s.samples / s.rate_hz) / 2)
+    setup = Setup(sonar, medium, pulse, model, az, el, tuple(float(r) for r in rng_m))
+    if scene.boundaries or scene.targets.meshes:
+        from acoustics.paths.ray_scene import build_ray_scene
+        log = log if log is not None else StageLog()
+        with log.stage("rays_build"):
+            object.__setattr__(setup, "ray_scene", build_ray_scene(scene, setup))
+    return setup
+
+
+def counting_volume_of(setup: Setup, positions_sonar_m) -> np.ndarray:
+    """True where a sonar-frame position lies in the default counting volume (the one
+    processing uses: :func:`processing.counting.counting_volume` of the transmitter's 3 dB
+    beamwidths and the image's range limits).
+
+    Parameters
+    ----------
+    setup : Setup
+    positions_sonar_m : array_like, shape (n, 3)
+        Sonar-frame positions (m).
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
+    return setup.counting_volume.contains(positions_sonar_m)

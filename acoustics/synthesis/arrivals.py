@@ -1,0 +1,432 @@
+"""The echo model of a point scatterer at every receiver element (thesis eq. 2.16–2.23).
+
+For scatterer P with complex strength q = ρ e^{jφ} and receiver element n::
+
+    r1 = |P − T|,  r2n = |P − R_n|,  τ_n = (r1 + r2n) / c
+    A_n = k · S · q · E_t(P) · g(r1) · D_n(P) · g(r2n) · e^{−j2π f0 τ_n}
+
+with T the transmitter's phase centre, E_t its complex directivity (element directivities summed
+with their exact path phases relative to T, 1 on axis), S = Σ_e w_e its source level, D_n the
+receive element's directivity, g(r) = 10^(−α r/20)/r the one-way spreading and absorption, and k
+the ADC scale. The element n then records A_n u(t − τ_n).
+
+Source level: each transmit element driven at unit amplitude radiates pressure 1 at 1 m on its
+own axis (the p_0n of thesis eq. 2.9–2.10), so on the array's axis the ganged elements add to
+S = Σ w_e — 16 for ABACUS, +24 dB. (Normalising the transmitter to a unit on-axis level instead
+would make sixteen elements no louder than one.) Delays are exact per element (no plane-wave approximation) and computed in
+float64.
+
+The hot loops are compiled with numba: one pass per scatterer for the transmitter factor, and one
+fused pass per (scatterer, element) pair that either returns (τ, A) or spreads A onto the sample
+grid through a fractional-delay kernel. Threads split the receiver elements, so every channel is
+accumulated in the same order whatever the number of threads (bit-identical results).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+from acoustics.sonar.arrays import ElementArray
+from acoustics.sonar.directivity import array_response, element_directivity
+from acoustics.synthesis.kernels import EXP_SMALL_LIMIT, cis_cycles, exp_small, sincos
+from acoustics.medium import Medium
+from acoustics.sonar import preset
+
+__all__ = ["EchoModel", "transmit_factor", "arrivals", "spread_arrivals"]
+
+_LN10_OVER_20 = np.log(10.0) / 20.0
+
+
+@nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
+def _piston(dx, dy, dz, inv_r, ex0, ex1, ey0, ey1, hkw, hkh, baffle):
+    """Far-field rectangular piston directivity towards (dx, dy, dz) at distance 1/inv_r:
+    sinc(hkw u_x) sinc(hkh u_y), with one division for both factors."""
+    if baffle and dz < 0.0:
+        return 0.0
+    a = hkw * (dx * ex0 + dy * ex1) * inv_r
+    b = hkh * (dx * ey0 + dy * ey1) * inv_r
+    num = 1.0
+    den = 1.0
+    if abs(a) < 1e-5:
+        num = 1.0 - a * a * (1.0 / 6.0)
+    else:
+        num, _ = sincos(a)
+        den = a
+    if abs(b) < 1e-5:
+        num *= 1.0 - b * b * (1.0 / 6.0)
+    else:
+        sb, _ = sincos(b)
+        num *= sb
+        den *= b
+    return num / den
+
+
+_BLOCK = 256  # scatterers per vectorised block
+
+
+@nb.njit(cache=True, fastmath=True, error_model="numpy")
+def _tx_block(qx, qy, qz, rref, cx, cy, cz, ex0, ex1, ey0, ey1, hkw, hkh, w, inv_lam, baffle, acc):
+    """Add one transmit element's contribution to a block of scatterers (vectorises).
+
+    ``acc[:n]`` and ``acc[B:B + n]`` hold the real and imaginary running sums."""
+    n = qx.shape[0]
+    for i in range(n):
+        dx = qx[i] - cx
+        dy = qy[i] - cy
+        dz = qz[i] - cz
+        r = max(np.sqrt(dx * dx + dy * dy + dz * dz), 1e-9)
+        inv_r = 1.0 / r
+        d = _piston(dx, dy, dz, inv_r, ex0, ex1, ey0, ey1, hkw, hkh, baffle)
+        # R_e − R_T by direct subtraction: at sonar ranges that costs ~1e-14 m, i.e. 1e-11 rad
+        sn, cs = cis_cycles(-(r - rref[i]) * inv_lam)
+        amp = w * d * rref[i] * inv_r
+        acc[i] += amp * cs
+        acc[_BLOCK + i] += amp * sn
+
+
+@nb.njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
+def _tx_far_field(px, py, pz, c, ex, ey, hkw, hkh, w, ref, inv_lam, baffle):
+    """E_t(P) for every scatterer, Σ_e w_e D_e e^{−jk(R_e − R_T)} (R_T/R_e) / Σ w_e, and R_T."""
+    n_s = px.shape[0]
+    n_e = c.shape[0]
+    wsum = 0.0
+    for e in range(n_e):
+        wsum += w[e]
+    out = np.empty(n_s, np.complex128)
+    r_out = np.empty(n_s)
+    n_blocks = (n_s + _BLOCK - 1) // _BLOCK
+    for b in nb.prange(n_blocks):
+        s0 = b * _BLOCK
+        s1 = min(s0 + _BLOCK, n_s)
+        qx, qy, qz = px[s0:s1], py[s0:s1], pz[s0:s1]
+        rref = np.sqrt((qx - ref[0]) ** 2 + (qy - ref[1]) ** 2 + (qz - ref[2]) ** 2)
+        acc = np.zeros(2 * _BLOCK)
+        for e in range(n_e):
+            _tx_block(qx, qy, qz, rref, c[e, 0], c[e, 1], c[e, 2], ex[e, 0], ex[e, 1], ey[e, 0],
+                      ey[e, 1], hkw[e], hkh[e], w[e], inv_lam, baffle, acc)
+        for i in range(s1 - s0):
+            out[s0 + i] = complex(acc[i], acc[_BLOCK + i]) / wsum
+            r_out[s0 + i] = rref[i]
+    return out, r_out
+
+
+@nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
+def _pair(x, y, z, fre, fim, r1, cx, cy, cz, ex0, ex1, ey0, ey1, hkw, hkh, dre, dim, use_d,
+          inv_c, inv_lam, alpha, small_abs, spreading, baffle):
+    """(τ, Re A, Im A) of a scatterer at (x, y, z) for the element centred at (cx, cy, cz).
+
+    ``fre + j fim`` already holds k·q·E_t·g(r1)·e^{−α r1}, so the receive leg contributes
+    e^{−α (r2 − r1)} (small: the legs differ by at most the array offset) and 1/r2.
+    Every argument is a scalar so that the compiled loop keeps them in registers.
+    """
+    dx = x - cx
+    dy = y - cy
+    dz = z - cz
+    r2 = np.sqrt(dx * dx + dy * dy + dz * dz)
+    inv_r = 1.0 / max(r2, 1e-3)  # a scatterer on a face: large but finite
+    path = r1 + r2
+    g = inv_r if spreading else 1.0
+    if alpha != 0.0:
+        if small_abs:
+            g *= exp_small(-alpha * (r2 - r1))
+        else:
+            g *= np.exp(-alpha * (r2 - r1))
+    sn, cs = cis_cycles(-path * inv_lam)
+    if use_d:
+        are = dre * g
+        aim = dim * g
+    else:
+        are = _piston(dx, dy, dz, inv_r, ex0, ex1, ey0, ey1, hkw, hkh, baffle) * g
+        aim = 0.0
+    # (fre + j fim)(are + j aim)(cs + j sn)
+    pr = fre * are - fim * aim
+    pi = fre * aim + fim * are
+    return path * inv_c, pr * cs - pi * sn, pr * sn + pi * cs
+
+
+@nb.njit(cache=True, fastmath=True, error_model="numpy")
+def _pair_block(qx, qy, qz, qre, qim, q1, cx, cy, cz, ex0, ex1, ey0, ey1, hkw, hkh, inv_c, inv_lam,
+                alpha, small_abs, spreading, baffle, buf):
+    """:func:`_pair` for a block of scatterers and far-field directivity, vectorised.
+
+    Writes Re A to ``buf[:n]``, Im A to ``buf[B:B + n]`` and τ to ``buf[2B:2B + n]``."""
+    n = qx.shape[0]
+    for i in range(n):
+        dx = qx[i] - cx
+        dy = qy[i] - cy
+        dz = qz[i] - cz
+        r2 = np.sqrt(dx * dx + dy * dy + dz * dz)
+        inv_r = 1.0 / max(r2, 1e-3)
+        path = q1[i] + r2
+        g = inv_r if spreading else 1.0
+        if small_abs:
+            g *= exp_small(-alpha * (r2 - q1[i]))
+        else:
+            g *= np.exp(-alpha * (r2 - q1[i]))
+        g *= _piston(dx, dy, dz, inv_r, ex0, ex1, ey0, ey1, hkw, hkh, baffle)
+        sn, cs = cis_cycles(-path * inv_lam)
+        are = g * qre[i]
+        aim = g * qim[i]
+        buf[i] = are * cs - aim * sn
+        buf[_BLOCK + i] = are * sn + aim * cs
+        buf[2 * _BLOCK + i] = path * inv_c
+
+
+@nb.njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
+def _arrivals(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, inv_lam, alpha,
+              small_abs, spreading, baffle):
+    n_s, n_r = px.shape[0], c.shape[0]
+    tau = np.empty((n_s, n_r))
+    amp = np.empty((n_s, n_r), np.complex128)
+    for n in nb.prange(n_r):
+        cx, cy, cz = c[n, 0], c[n, 1], c[n, 2]
+        ex0, ex1, ey0, ey1 = ex[n, 0], ex[n, 1], ey[n, 0], ey[n, 1]
+        kw, kh = hkw[n], hkh[n]
+        for s in range(n_s):
+            d = d_in[s, n] if use_d else 0j
+            t, ar, ai = _pair(px[s], py[s], pz[s], fre[s], fim[s], r1[s], cx, cy, cz, ex0, ex1,
+                              ey0, ey1, kw, kh, d.real, d.imag, use_d, inv_c, inv_lam, alpha,
+                              small_abs, spreading, baffle)
+            tau[s, n] = t
+            amp[s, n] = complex(ar, ai)
+    return tau, amp
+
+
+@nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
+def _add_taps(row, ar, ai, tau, t0, fs, q0, table, dtable, lo, hi):
+    """Spread one arrival onto a channel's delta train (skipped if outside the record)."""
+    mu = (tau - t0) * fs + q0
+    if mu < lo or mu >= hi:
+        return
+    n_phase = dtable.shape[0]
+    taps = table.shape[1]
+    m0 = int(mu)
+    x = (mu - m0) * n_phase
+    i = min(int(x), n_phase - 1)
+    w = x - i
+    base = m0 - taps // 2 + 1
+    for j in range(taps):
+        h = table[i, j] + w * dtable[i, j]
+        row[base + j, 0] += ar * h
+        row[base + j, 1] += ai * h
+
+
+@nb.njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
+def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, inv_lam, alpha,
+            small_abs, spreading, baffle, table, dtable, t0, fs, q0, n_out):
+    """Accumulate every arrival onto its channel's delta train through the kernel table.
+
+    ``table[i, j]`` is the kernel at tap j for fractional offset i / (rows − 1) and ``dtable``
+    its forward difference along i; taps land on samples floor(μ) − L/2 + 1 + j with
+    μ = (τ − t0) fs + q0. One thread per channel, scatterers in the given order: the sums do
+    not depend on the number of threads.
+    """
+    n_s, n_r = px.shape[0], c.shape[0]
+    half = table.shape[1] // 2
+    out = np.zeros((n_r, n_out, 2))  # re, im adjacent: one cache line per tap pair
+    lo = float(half)
+    hi = float(n_out - half)
+    for n in nb.prange(n_r):
+        row = out[n]
+        cx, cy, cz = c[n, 0], c[n, 1], c[n, 2]
+        ex0, ex1, ey0, ey1 = ex[n, 0], ex[n, 1], ey[n, 0], ey[n, 1]
+        kw, kh = hkw[n], hkh[n]
+        if use_d:  # huygens: directivities given, scalar path
+            for s in range(n_s):
+                d = d_in[s, n]
+                tau, ar, ai = _pair(px[s], py[s], pz[s], fre[s], fim[s], r1[s], cx, cy, cz, ex0,
+                                    ex1, ey0, ey1, kw, kh, d.real, d.imag, True, inv_c, inv_lam,
+                                    alpha, small_abs, spreading, baffle)
+                _add_taps(row, ar, ai, tau, t0, fs, q0, table, dtable, lo, hi)
+            continue
+        buf = np.empty(3 * _BLOCK)
+        for s0 in range(0, n_s, _BLOCK):
+            s1 = min(s0 + _BLOCK, n_s)
+            _pair_block(px[s0:s1], py[s0:s1], pz[s0:s1], fre[s0:s1], fim[s0:s1], r1[s0:s1], cx, cy,
+                        cz, ex0, ex1, ey0, ey1, kw, kh, inv_c, inv_lam, alpha, small_abs,
+                        spreading, baffle, buf)
+            for i in range(s1 - s0):
+                _add_taps(row, buf[i], buf[_BLOCK + i], buf[2 * _BLOCK + i], t0, fs, q0, table,
+                          dtable, lo, hi)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class EchoModel:
+    """Everything about the sonar and water that a ping's echoes need, fixed for a run.
+
+    Attributes
+    ----------
+    transmitter, receiver : ElementArray
+        The ganged transmitter and the recorded receiver channels (sonar frame).
+    medium : Medium
+    center_frequency_hz : float
+    scale_counts : float
+        k: ADC counts per unit pressure (a unit-driven element gives 1 at 1 m on its axis).
+    fidelity : {"far_field", "huygens"}
+    subdivisions : (int, int)
+    baffle, spreading, absorption : bool
+    """
+
+    transmitter: ElementArray
+    receiver: ElementArray
+    medium: Medium
+    center_frequency_hz: float = preset.CENTER_FREQUENCY_HZ
+    scale_counts: float = 1.0
+    fidelity: str = "far_field"
+    subdivisions: tuple = (4, 4)
+    baffle: bool = True
+    spreading: bool = True
+    absorption: bool = True
+
+    @property
+    def wavenumber_rad_m(self) -> float:
+        return self.medium.wavenumber_rad_m(self.center_frequency_hz)
+
+    @property
+    def source_level(self) -> float:
+        """S = Σ w_e: on-axis pressure at 1 m of the ganged transmitter (unit drive per element)."""
+        return float(self.transmitter.weight.sum())
+
+    def _rx_args(self, p):
+        """Receiver-side arguments of the compiled kernels for scatterers ``p`` (S, 3)."""
+        rx = self.receiver
+        ex, ey = rx.local_axes
+        k = self.wavenumber_rad_m
+        if self.fidelity == "huygens":
+            d_in = element_directivity(rx, p, wavenumber_rad_m=k, fidelity="huygens",
+                                       subdivisions=self.subdivisions, baffle=self.baffle)
+        else:
+            d_in = np.zeros((1, 1), np.complex128)
+        alpha = _alpha_np_per_m(self)
+        # |r2 − r1| <= |R_n − T|, so this bound decides if the cheap exponential is exact
+        reach = float(np.max(np.linalg.norm(rx.center_m - self.transmitter.phase_center_m, axis=1)))
+        return (np.ascontiguousarray(rx.center_m), np.ascontiguousarray(ex[:, :2]),
+                np.ascontiguousarray(ey[:, :2]), 0.5 * k * rx.width_m, 0.5 * k * rx.height_m,
+                np.ascontiguousarray(d_in, np.complex128), self.fidelity == "huygens",
+                1.0 / self.medium.sound_speed_m_s,
+                self.center_frequency_hz / self.medium.sound_speed_m_s, alpha,
+                alpha * reach <= EXP_SMALL_LIMIT, self.spreading, self.baffle)
+
+
+def _positions(positions) -> np.ndarray:
+    p = np.ascontiguousarray(np.asarray(positions, float).reshape(-1, 3))
+    if not np.all(np.isfinite(p)):
+        raise ValueError("scatterer positions must be finite")
+    return p
+
+
+def _transmit(model: EchoModel, p: np.ndarray):
+    """E_t(P) (complex, shape (S,)) and r1 = |P − T| (m, shape (S,))."""
+    tx = model.transmitter
+    ref = tx.phase_center_m
+    k = model.wavenumber_rad_m
+    if model.fidelity == "huygens":
+        e_t = array_response(tx, p, wavenumber_rad_m=k, fidelity="huygens",
+                             subdivisions=model.subdivisions, baffle=model.baffle, reference_m=ref)
+        return e_t, np.linalg.norm(p - ref, axis=1)
+    ex, ey = tx.local_axes
+    return _tx_far_field(np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
+                         np.ascontiguousarray(p[:, 2]), np.ascontiguousarray(tx.center_m),
+                         np.ascontiguousarray(ex[:, :2]), np.ascontiguousarray(ey[:, :2]),
+                         0.5 * k * tx.width_m, 0.5 * k * tx.height_m, tx.weight, ref,
+                         model.center_frequency_hz / model.medium.sound_speed_m_s, model.baffle)
+
+
+def _alpha_np_per_m(model: EchoModel) -> float:
+    a = model.medium.absorption_db_per_m
+    return a * _LN10_OVER_20 if model.absorption and a > 0 else 0.0
+
+
+def transmit_factor(model: EchoModel, positions_m, strength):
+    """Per-scatterer factor k·S·q·E_t(P)·g(r1) and the transmit leg r1.
+
+    Parameters
+    ----------
+    model : EchoModel
+    positions_m : array_like, shape (S, 3)
+        Scatterers (m), sonar frame.
+    strength : array_like, shape (S,)
+        Complex backscatter amplitude q = ρ e^{jφ} (m).
+
+    Returns
+    -------
+    factor : ndarray, shape (S,), complex128
+        In ADC counts x m (the receive leg g(r2) supplies the remaining 1/m).
+    r1_m : ndarray, shape (S,)
+        Distance (m) from the transmitter's phase centre.
+    """
+    p = _positions(positions_m)
+    e_t, r1 = _transmit(model, p)
+    g1 = model.medium.one_way_gain(r1, spreading=model.spreading, absorption=model.absorption)
+    return (model.scale_counts * model.source_level * np.asarray(strength, complex).reshape(-1)
+            * e_t * g1, r1)
+
+
+def _kernel_inputs(model, positions_m, strength, *, by_range=False, receive_positions_m=None):
+    """Columns the compiled kernels take, optionally reordered by range (see spread_arrivals).
+
+    ``receive_positions_m`` (S, 3), when given, is where the receive leg starts: the image point of
+    a path that bounces on its way back (multipath); the transmit leg uses ``positions_m``."""
+    p = _positions(positions_m)
+    q = np.asarray(strength, complex).reshape(-1)
+    e_t, r1 = _transmit(model, p)
+    alpha = _alpha_np_per_m(model)
+    # k S q E_t g(r1) and, folded in here, the receive leg's absorption up to e^{−α(r2 − r1)}
+    w = np.exp(-2.0 * alpha * r1) if alpha else np.ones_like(r1)
+    if model.spreading:
+        w = w / np.maximum(r1, 1e-3)
+    f_s = model.scale_counts * model.source_level * q * e_t * w
+    prx = p if receive_positions_m is None else _positions(receive_positions_m)
+    if prx.shape != p.shape:
+        raise ValueError("receive_positions_m must have the shape of positions_m")
+    rx = model._rx_args(prx)
+    if receive_positions_m is not None and alpha and rx[10]:
+        # |r2 − r1| <= ||P_rx − T| − r1| + |R_n − T|: is the cheap e^{−α(r2 − r1)} still exact?
+        reach = float(np.max(np.linalg.norm(model.receiver.center_m - model.transmitter.phase_center_m, axis=1)))
+        gap = float(np.max(np.abs(np.linalg.norm(prx - model.transmitter.phase_center_m, axis=1) - r1)))
+        if alpha * (gap + reach) > EXP_SMALL_LIMIT:
+            rx = rx[:10] + (False,) + rx[11:]
+    cols = [prx[:, 0], prx[:, 1], prx[:, 2], f_s.real, f_s.imag, r1]
+    if by_range:
+        # a 16-bit key gets numpy's linear-time radix sort; ties keep the input order
+        key = (r1 * (32767.0 / max(float(r1.max()), 1e-12))).astype(np.int16)
+        order = np.argsort(key, kind="stable")
+        cols = [c[order] for c in cols]  # 1-D takes: far cheaper than a 2-D fancy index
+        if rx[6]:  # huygens directivities follow their scatterers
+            rx = rx[:5] + (rx[5][order],) + rx[6:]
+    return tuple(np.ascontiguousarray(c) for c in cols) + rx
+
+
+def arrivals(model: EchoModel, positions_m, strength, *, receive_positions_m=None):
+    """Delay and complex amplitude of every (scatterer, receiver element) arrival.
+
+    ``receive_positions_m`` (S, 3): where each receive leg starts, when it differs from the
+    transmit leg's end (a bounce on the way back: the image point).
+
+    Returns
+    -------
+    tau_s : ndarray, shape (S, N_rx), float64
+        Two-way delays (s) from the transmitter's phase centre to each element.
+    amplitude : ndarray, shape (S, N_rx), complex128
+        A_n in ADC counts, carrier phase e^{−j2πf0τ} included.
+    """
+    return _arrivals(*_kernel_inputs(model, positions_m, strength,
+                                     receive_positions_m=receive_positions_m))
+
+
+def spread_arrivals(model: EchoModel, positions_m, strength, *, table, t0_s, rate_hz, q0, n_out,
+                    receive_positions_m=None):
+    """The channels' fractional-delay delta trains, shape (N_rx, n_out), complex128.
+
+    Scatterers are visited in order of range (a stable sort), so the delta trains are written
+    nearly sequentially; the order is fixed by the scene, never by the thread count.
+    """
+    args = _kernel_inputs(model, positions_m, strength, by_range=True,
+                          receive_positions_m=receive_positions_m)
+    table = np.ascontiguousarray(table)
+    out = _spread(*args, table, np.ascontiguousarray(np.diff(table, axis=0)), float(t0_s),
+                  float(rate_hz), float(q0), int(n_out))
+    return out.view(np.complex128)[..., 0]

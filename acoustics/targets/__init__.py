@@ -1,0 +1,1 @@
+"""Point targets (fish, squid) of a ping: explicit points and random populations (``draw``)."""

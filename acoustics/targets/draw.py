@@ -1,0 +1,156 @@
+"""Point targets for one ping: explicit points and random populations, seeded per ping.
+
+Every draw comes from ``default_rng(SeedSequence([seed, ping, stream, group]))``: a ping's
+targets depend only on the scene seed and that ping's index. Populations with ``redraw: false``
+draw their positions once (the ping index is replaced by :data:`FIXED`); backscatter amplitudes
+and random phases are drawn every ping — a fish's echo fluctuates from ping to ping even when it
+holds its place.
+
+Backscatter models (thesis §2.4.1): ``unit`` ρ = 1 m; ``fixed`` ρ = 10^(TS/20) m; ``rayleigh``
+ρ from a Rayleigh law of scale s truncated to [lo, hi] by inverse-CDF sampling.
+A population given by density draws a Poisson number of targets with mean density × volume
+(a homogeneous Poisson point process), so counts vary from ping to ping as in the sea.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from acoustics.frames import Pose, spherical_to_cartesian
+from acoustics.seeds import FIXED, ping_rng
+
+__all__ = ["TargetSet", "draw_targets", "point_positions_sonar", "draw_backscatter"]
+
+@dataclass(frozen=True, eq=False)
+class TargetSet:
+    """The point targets of one ping, one row each.
+
+    Attributes
+    ----------
+    position_sonar_m : ndarray, shape (n, 3)
+        Sonar-frame positions (m).
+    position_world_m : ndarray, shape (n, 3)
+        World-frame positions (m).
+    rho_m : ndarray, shape (n,)
+        Backscatter amplitude ρ = √σ_bs (m).
+    phase_rad : ndarray, shape (n,)
+        Extra echo phase (rad); 0 unless the target asks for a random phase.
+    group : ndarray of int, shape (n,)
+        -1 for explicit points, else the index of the population.
+    shadowed : ndarray of bool, shape (n,), optional
+        A mesh blocks the direct path.
+    """
+
+    position_sonar_m: np.ndarray
+    position_world_m: np.ndarray
+    rho_m: np.ndarray
+    phase_rad: np.ndarray
+    group: np.ndarray
+    shadowed: np.ndarray | None = None
+    """Whether a mesh blocks the target's direct path (set by the simulation; None before)."""
+
+    def __len__(self) -> int:
+        return int(self.rho_m.shape[0])
+
+    @classmethod
+    def empty(cls) -> "TargetSet":
+        z = np.zeros((0, 3))
+        return cls(z, z.copy(), np.zeros(0), np.zeros(0), np.zeros(0, int))
+
+
+def point_positions_sonar(points, pose: Pose) -> np.ndarray:
+    """Sonar-frame positions (m), shape (n, 3), of explicit point-target specs."""
+    out = np.zeros((len(points), 3))
+    for i, t in enumerate(points):
+        if t.position_m is None:
+            out[i] = spherical_to_cartesian(t.range_m, t.azimuth, t.elevation)
+        elif t.frame == "sonar":
+            out[i] = t.position_m
+        else:
+            out[i] = pose.to_sonar(np.asarray(t.position_m, float))
+    return out
+
+
+def draw_backscatter(model, n: int, rng: np.random.Generator) -> np.ndarray:
+    """ρ (m) for ``n`` targets of one backscatter model, shape (n,)."""
+    if model.model == "unit":
+        return np.ones(n)
+    if model.model == "fixed":
+        return np.full(n, 10.0 ** (model.ts_db / 20.0))
+    s, lo, hi = model.scale_m, model.lo_m, model.hi_m
+    # Rayleigh CDF F(x) = 1 - exp(-x²/2s²); sample F uniformly between F(lo) and F(hi)
+    f_lo = -np.expm1(-lo * lo / (2 * s * s))
+    f_hi = -np.expm1(-hi * hi / (2 * s * s))
+    u = f_lo + (f_hi - f_lo) * rng.random(n)
+    rho = s * np.sqrt(-2.0 * np.log1p(-u))
+    return np.clip(rho, lo, hi)  # only rounding can leave [lo, hi]
+
+
+def _population_positions(pop, n: int, rng: np.random.Generator, pose: Pose):
+    """(sonar-frame, world-frame) positions of ``n`` uniform targets of a population."""
+    if pop.kind == "uniform_cuboid":
+        lo = np.array([pop.x_m[0], pop.y_m[0], pop.z_m[0]])
+        hi = np.array([pop.x_m[1], pop.y_m[1], pop.z_m[1]])
+        p = lo + (hi - lo) * rng.random((n, 3))
+        if pop.frame == "world":
+            return pose.to_sonar(p), p
+        return p, pose.to_world(p)
+    (r0, r1), (a0, a1), (e0, e1) = pop.range_m, pop.azimuth, pop.elevation
+    u = rng.random((n, 3))
+    r = np.cbrt(r0**3 + u[:, 0] * (r1**3 - r0**3))       # uniform in volume: dV ∝ r² dr
+    th = a0 + u[:, 1] * (a1 - a0)
+    ph = np.arcsin(np.sin(e0) + u[:, 2] * (np.sin(e1) - np.sin(e0)))  # dV ∝ cos φ dφ
+    p = spherical_to_cartesian(r, th, ph)
+    return p, pose.to_world(p)
+
+
+def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None) -> TargetSet:
+    """All point targets of one ping of a scene.
+
+    Parameters
+    ----------
+    scene : Scene
+    ping : int
+        Ping index (the seed's second component).
+    pose : Pose
+        The sonar's pose (for frame conversions).
+    seed : int, optional
+        Overrides ``scene.seed``.
+
+    Returns
+    -------
+    TargetSet
+    """
+    seed = scene.seed if seed is None else int(seed)
+    spec = scene.targets
+    parts_s, parts_w, rhos, phases, groups = [], [], [], [], []
+    if spec.points:
+        ps = point_positions_sonar(spec.points, pose)
+        parts_s.append(ps)
+        parts_w.append(pose.to_world(ps))
+        rng_b = ping_rng(seed, ping, "backscatter", 0)
+        rng_p = ping_rng(seed, ping, "phase", 0)
+        rho = np.array([draw_backscatter(t.backscatter, 1, rng_b)[0] for t in spec.points])
+        ph = rng_p.uniform(-np.pi, np.pi, len(spec.points))
+        ph = np.where([t.random_phase for t in spec.points], ph, 0.0)
+        rhos.append(rho)
+        phases.append(ph)
+        groups.append(np.full(len(spec.points), -1))
+    for j, pop in enumerate(spec.populations, start=1):
+        pos_ping = ping if pop.redraw else FIXED
+        if pop.count is not None:
+            n = pop.count
+        else:
+            n = int(ping_rng(seed, pos_ping, "count", j).poisson(pop.density_per_m3 * pop.volume_m3))
+        ps, pw = _population_positions(pop, n, ping_rng(seed, pos_ping, "positions", j), pose)
+        parts_s.append(ps)
+        parts_w.append(pw)
+        rhos.append(draw_backscatter(pop.backscatter, n, ping_rng(seed, ping, "backscatter", j)))
+        ph = ping_rng(seed, ping, "phase", j).uniform(-np.pi, np.pi, n)
+        phases.append(ph if pop.random_phase else np.zeros(n))
+        groups.append(np.full(n, j - 1))
+    if not parts_s:
+        return TargetSet.empty()
+    return TargetSet(np.concatenate(parts_s), np.concatenate(parts_w), np.concatenate(rhos),
+                     np.concatenate(phases), np.concatenate(groups).astype(int))
