@@ -16,6 +16,8 @@ import time
 import numpy as np
 from _report import ROOT, Report, best_time, db, table
 
+from acoustics.sonar import preset
+
 REPORT = Report(
     "Accuracy vs cost",
     """Every approximation in abacus has a named setting and a reference setting. This page is
@@ -29,11 +31,15 @@ knob = REPORT.section
 @knob
 def directivity():
     """Element directivity: far_field vs huygens n x m (reference huygens 32 x 32)."""
-    from acoustics.sonar.arrays import abacus_transmitter
-    from acoustics.sonar.directivity import array_response, element_directivity, unit_vector
     from acoustics.medium import Medium
+    from acoustics.sonar.arrays import abacus_transmitter
+    from acoustics.sonar.directivity import (
+        array_response,
+        element_directivity,
+        unit_vector,
+    )
 
-    k = Medium().wavenumber_rad_m(420_375.0)
+    k = Medium().wavenumber_rad_m(preset.CENTER_FREQUENCY_HZ)
     tx = abacus_transmitter("abacus")
     rng = np.random.default_rng(0)
     n_pts = 2000
@@ -90,19 +96,20 @@ def directivity():
 @knob
 def synthesis():
     """Echo synthesis: fast (kernel length L) vs exact."""
-    from acoustics.sonar.arrays import ElementArray
-    from acoustics.synthesis.arrivals import EchoModel
     from acoustics.medium import Medium
-    from acoustics.sonar.pulse import Pulse
+    from acoustics.sonar.arrays import ElementArray
     from acoustics.sonar.build import preset_sonar
+    from acoustics.sonar.pulse import Pulse
+    from acoustics.synthesis.arrivals import EchoModel
     from acoustics.synthesis.synthesize import synthesize
 
     son = preset_sonar()
     subs = son.receiver.subarrays
     rx32 = ElementArray.concatenate([subs["A"], subs["B"]], "32 elements")
-    model = EchoModel(son.transmitter, rx32, Medium(1530.0, 0.1), 420_375.0, 16384.0)
+    model = EchoModel(son.transmitter, rx32, Medium(preset.SOUND_SPEED_M_S, 0.1), preset.CENTER_FREQUENCY_HZ,
+                      preset.ADC_SCALE_COUNTS)
     pulse = Pulse()
-    kw = dict(pulse=pulse, rate_hz=45_455.0, n_samples=4096)
+    kw = dict(pulse=pulse, rate_hz=preset.SAMPLE_RATE_HZ, n_samples=preset.SAMPLES_PER_PING)
     rng = np.random.default_rng(1)
     lengths = (4, 6, 8, 12, 16, 24, 32)
     parts = []
@@ -280,7 +287,7 @@ def _floor_run(density, level, pings):
     t = (sec.get("rays_build", 0) + sec.get("reverberation", 0) + sec.get("echoes", 0)) / pings
     rays = json.loads(prov.attrs["rays_cast_json"]).get("reverberation", 0)
     im = processing.images_of(processing.image(tree))
-    inten = np.abs(im["image"][:, 0, :, 4:28]) ** 2          # pings x range x central beams
+    inten = np.abs(im.image[:, 0, :, 4:28]) ** 2          # pings x range x central beams
     mean = inten.mean(axis=0)                                 # per cell, over pings
     # per cell over pings (the floor's cells only): var/mean² = 1 for fully developed speckle
     floor = mean >= 0.1 * mean.max(axis=0)
@@ -396,13 +403,16 @@ def mesh_resolution():
     """Sphere facets: icosphere subdivisions 2..6 vs modal series and vs the finest PO."""
     import trimesh
 
-    from acoustics.paths.scattering import (po_backscatter, rigid_sphere_backscatter,
-                                      triangle_phase_integral)
+    from acoustics.paths.scattering import (
+        po_backscatter,
+        rigid_sphere_backscatter,
+        triangle_phase_integral,
+    )
 
-    a, c = 0.01905, 1530.0
+    a, c = 0.01905, preset.SOUND_SPEED_M_S
     f = np.linspace(400e3, 440e3, 41)
     k = 2 * np.pi * f / c
-    k0 = 2 * np.pi * 420_375.0 / c
+    k0 = 2 * np.pi * preset.CENTER_FREQUENCY_HZ / c
     modal = np.mean(rigid_sphere_backscatter(k * a, a) ** 2)
     kh = np.array([0.0, 0.0, 1.0])
     fine = trimesh.creation.icosphere(subdivisions=7, radius=a).triangles
@@ -424,7 +434,7 @@ def mesh_resolution():
         f_i = 1j * k0 / (2 * np.pi) * cosine * triangle_phase_integral(tri[lit], -2 * k0 * kh)
         approx = np.array([np.sum(f_i * np.exp(-2j * kk * (cen @ kh))) for kk in k])
         rows.append([str(sub) + (" (scene default 4)" if sub == 4 else ""), f"{len(tri):,}",
-                     f"{edge / (c / 420_375.0):.2f}",
+                     f"{edge / (c / preset.CENTER_FREQUENCY_HZ):.2f}",
                      f"{10 * np.log10(po.mean() / modal):+.3f}",
                      f"{np.max(np.abs(10 * np.log10(po / po_ref))):.3f}",
                      f"{10 * np.log10(np.mean(np.abs(approx) ** 2) / po.mean()):+.3f}",

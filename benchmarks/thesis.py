@@ -9,7 +9,6 @@ thesis' settings), keeps the report's figures, and sets the numbers next to what
 """
 from __future__ import annotations
 
-import math
 import shutil
 import tempfile
 import warnings
@@ -17,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 from _report import ROOT, Report, table
+
+from processing.noise import RAYLEIGH_MEAN_FACTOR
 
 REPORT = Report(
     "The thesis' chapter 6, reproduced",
@@ -38,9 +39,10 @@ FIG = ROOT / "docs" / "figures" / "thesis"
 
 
 def _run(scene_name, *, sweep=None, pings=None, workers=2):
+    import xarray as xr
+
     from acoustics import SceneWarning, load_scene
     from acoustics.experiment import parse_sweep, run_experiment
-    import xarray as xr
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
         scene = load_scene(ROOT / "scenes" / scene_name)
@@ -142,7 +144,7 @@ def noise():
     ds, tmp = _run("noise.yaml", sweep="threshold=670,700,730")
     figs = _keep(tmp, "noise", ["noise_pdf", "counts", "sweep"])
     lab = list(ds["setting_label"].values)
-    mu = float(np.nanmedian(ds["noise_sigma_counts"][0])) * math.sqrt(math.pi / 2)
+    mu = float(np.nanmedian(ds["noise_sigma_counts"][0])) * RAYLEIGH_MEAN_FACTOR
     rows = [["threshold derived (thesis convention, α = 1e-7)", "T ≈ 670 (T/μ = 4.79)",
              f"T/μ = {float(np.nanmedian(ds['threshold_counts'][0])) / mu:.2f}"],
             ["count error before / after, derived threshold", "overcount (Fig. 6.15): sidelobes + noise",
@@ -173,7 +175,7 @@ def noise():
         warnings.simplefilter("ignore", SceneWarning)
         sc = load_scene(ROOT / "scenes" / "noise_only.yaml")
     im = processing.images_of(processing.image(simulate(sc, pings=range(20))))
-    fit = rayleigh_fit(np.abs(im["image"][:, 0]), estimator="ml")
+    fit = rayleigh_fit(np.abs(im.image[:, 0]), estimator="ml")
     shutil.rmtree(tmp)
     return ("## Noise (§6.3.4, Table 6.5, Figs. 6.13–6.17)\n\n"
             "`scenes/noise_only.yaml` (noise alone) for the PDF; `scenes/noise.yaml` for counting "
@@ -222,11 +224,11 @@ def all_variables():
 
 @section
 def threshold():
-    from processing.report import _derived_in_sweep_units, plateau
+    from processing.report import derived_in_sweep_units, plateau
     ds, tmp = _run("default.yaml", sweep="threshold=600:2000:50")
     figs = _keep(tmp, "threshold", ["sweep"])
     lo, hi = plateau(ds)
-    derived = _derived_in_sweep_units(ds)
+    derived = derived_in_sweep_units(ds)
     sw = ds.isel(setting=slice(1, None))
     k = int(np.argmax(np.abs(sw["error_after_mean"].values)))
     worst, worst_at = float(sw["error_after_mean"].values[k]), float(sw["sweep_value"].values[k])

@@ -1,19 +1,49 @@
 """abacus.processing — the inverse problem: echoes -> images -> detections -> counts.
 
-Works from the data contract alone (processing.dataset), so it runs the same on simulated and
-recorded data; it never imports acoustics. Public surface::
+Works from the data contract alone (:mod:`processing.dataset`), so it runs the same on simulated
+and recorded data; it never imports ``acoustics``. Public surface (docs/api.md; imported on first
+use, so ``import processing`` is cheap)::
 
-    image(tree, settings=None) -> DataTree       # pulse compression, beamforming, interferometry
-    open_tree(path), write_tree(tree, path)      # the dataset I/O (atomic writes)
+    image(tree, settings=None) -> DataTree     # pulse compression, beamforming, interferometry
+    detect(tree, settings=None) -> DataTree    # thresholds, peaks, 3-D location
+    count(tree, settings=None) -> DataTree     # counts, density, scores against the truth
+    images_of(tree) -> Images                  # the images as arrays
+    detections_of(tree) -> xarray.Dataset      # one row per detection
+    counts_of(tree) -> xarray.Dataset          # one row per ping
+    open_tree(path), write_tree(tree, path)    # the dataset I/O (atomic writes)
     ProcessingSettings, load_settings(path)
 """
-from .config import ConfigError
-from .dataset import DatasetError, open_tree, read_record, write_tree
-from .products import (count, count_summary, counts_of, format_counts, detect, detections_of, image, images_of,
-                       resolve_settings, volume_of, write_csv)
-from .noise import NoiseEstimateError
-from .settings import ImageSettings, ProcessingSettings, load_settings
+from __future__ import annotations
 
-__all__ = ["image", "detect", "count", "count_summary", "format_counts", "images_of", "detections_of", "counts_of", "volume_of",
-           "write_csv", "NoiseEstimateError", "resolve_settings", "open_tree", "write_tree", "read_record",
-           "DatasetError", "ConfigError", "ProcessingSettings", "ImageSettings", "load_settings"]
+import importlib
+
+#: public name -> module that defines it
+_API = {
+    "image": "processing.products", "detect": "processing.products", "count": "processing.products",
+    "images_of": "processing.products", "detections_of": "processing.products",
+    "counts_of": "processing.products", "count_summary": "processing.products",
+    "format_counts": "processing.products", "volume_of": "processing.products",
+    "write_csv": "processing.products", "resolve_settings": "processing.products",
+    "open_tree": "processing.dataset", "write_tree": "processing.dataset",
+    "read_record": "processing.dataset", "DatasetError": "processing.dataset",
+    "Images": "processing.imaging",
+    "NoiseEstimateError": "processing.noise",
+    "ConfigError": "processing.config",
+    "ProcessingSettings": "processing.settings", "ImageSettings": "processing.settings",
+    "load_settings": "processing.settings",
+}
+
+__all__ = sorted(_API)
+
+
+def __getattr__(name):
+    module = _API.get(name)
+    if module is None:
+        raise AttributeError(f"module 'processing' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return __all__

@@ -22,9 +22,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .counting import CountingVolume
+from .imaging import Images
 from .interferometry import elevation_from_phase
 from .locate import locate, to_world
-from .noise import NoiseEstimateError, RayleighFit, rayleigh_fit
+from .noise import NoiseEstimateError, RayleighFit, rayleigh_fit, rayleigh_mean
 from .peaks import local_maxima, refine_peaks
 from .scoring import match
 from .settings import DetectSettings
@@ -70,8 +71,25 @@ def n_tested_cells(range_m, beam_angle_rad, volume: CountingVolume, upsample: in
     return max(1, int(round(rows / max(upsample, 1))) * max(beams, 1))
 
 
-def _noise_fit(mags, st: DetectSettings, range_m, beam_angle_rad, upsample, noise_mags=None):
-    """Rayleigh fit of the cells the settings point at (mags: (n_pings, n_range, n_beams))."""
+def noise_fit(mags, st: DetectSettings, range_m, beam_angle_rad, upsample, noise_mags=None):
+    """Rayleigh fit of the image cells the detection settings take the noise from.
+
+    Parameters
+    ----------
+    mags : ndarray, shape (n_pings, n_range, n_beams)
+        |I| (ADC counts) of the image group detected on.
+    st : DetectSettings
+    range_m : ndarray, shape (n_range,)
+    beam_angle_rad : ndarray, shape (n_beams,)
+    upsample : int
+        Range interpolation factor (cells closer than a resolution cell are correlated).
+    noise_mags : ndarray, optional
+        |I| of a noise-only dataset (``noise.source: noise_file``).
+
+    Returns
+    -------
+    RayleighFit
+    """
     ns = st.noise
     if ns.source == "noise_file":
         cells = noise_mags
@@ -88,14 +106,14 @@ def _noise_fit(mags, st: DetectSettings, range_m, beam_angle_rad, upsample, nois
     return rayleigh_fit(cells, estimator=ns.estimator, decimate=dec)
 
 
-def detect_all(images: dict, record, settings: DetectSettings, volume: CountingVolume, *,
+def detect_all(images: Images, record, settings: DetectSettings, volume: CountingVolume, *,
                upsample: int, pose=None, noise_magnitudes=None) -> Detections:
     """Detections of every ping.
 
     Parameters
     ----------
-    images : dict
-        From :func:`processing.products.images_of`.
+    images : Images
+        From :func:`processing.imaging.form_images` or :func:`processing.products.images_of`.
     record : SonarRecord
         For the geometry (phase centres, transmitter, sound speed, wavelength).
     settings : DetectSettings
@@ -113,14 +131,14 @@ def detect_all(images: dict, record, settings: DetectSettings, volume: CountingV
         A Rayleigh threshold was asked for but the images carry no noise.
     """
     st = settings
-    groups = images["groups"]
+    groups = images.groups
     if st.image_group not in groups:
         raise ValueError(f"detect.image_group {st.image_group!r} is not an image of this dataset "
                          f"(images: {', '.join(groups)})")
     g = groups.index(st.image_group)
-    img = images["image"][:, g]
+    img = images.image[:, g]
     mags = np.abs(img)
-    r, th = images["range_m"], images["beam_angle_rad"]
+    r, th = images.range_m, images.beam_angle_rad
     n_ping = mags.shape[0]
     n_cells = n_tested_cells(r, th, volume, upsample)
     fit = None
@@ -131,7 +149,7 @@ def detect_all(images: dict, record, settings: DetectSettings, volume: CountingV
     if st.needs_noise or st.noise.source != "image":
         try:
             if not st.noise.per_ping:
-                fit = _noise_fit(mags, st, r, th, upsample, noise_magnitudes)
+                fit = noise_fit(mags, st, r, th, upsample, noise_magnitudes)
         except NoiseEstimateError:
             if st.needs_noise:
                 raise
@@ -147,11 +165,11 @@ def detect_all(images: dict, record, settings: DetectSettings, volume: CountingV
         m = mags[p]
         sigma_p = fit.sigma if fit is not None else np.nan
         if st.needs_noise and st.noise.per_ping:
-            sigma_p = _noise_fit(mags[p:p + 1], st, r, th, upsample, noise_magnitudes).sigma
+            sigma_p = noise_fit(mags[p:p + 1], st, r, th, upsample, noise_magnitudes).sigma
         if st.method == "rayleigh":
             thr = rayleigh_threshold(sigma_p, pfa, convention=st.convention)
         elif st.method == "fixed":
-            mu_p = sigma_p * np.sqrt(np.pi / 2)
+            mu_p = rayleigh_mean(sigma_p)
             thr = float(st.value) * {"counts": 1.0, "noise_mean": mu_p,
                                      "thesis": mu_p / st.thesis_noise_mean}[st.value_units]
         elif st.method == "fraction_of_peak":
@@ -183,7 +201,7 @@ def detect_all(images: dict, record, settings: DetectSettings, volume: CountingV
 
 def _describe(images, record, img, mags, ping, row, beam, volume, pose):
     """Refined position, elevation, 3-D location and flags of each detection."""
-    r, th = images["range_m"], images["beam_angle_rad"]
+    r, th = images.range_m, images.beam_angle_rad
     n = ping.size
     rng = np.empty(n)
     az = np.empty(n)
@@ -193,11 +211,11 @@ def _describe(images, record, img, mags, ping, row, beam, volume, pose):
         rng[k], az[k], amp[k] = refine_peaks(mags[p], row[k], beam[k], r, th)
     out = {"ping": ping, "ping_index": np.asarray(record.ping_index)[ping] if n else np.zeros(0, int),
            "row": row, "beam": beam, "range_m": rng, "azimuth_rad": az, "amplitude": amp}
-    psi = images.get("interferometric_phase")
-    centers = images.get("phase_centers") or {}
+    psi = images.psi_rad
+    centers = images.phase_centers_m or {}
     if psi is not None and "A" in centers and "B" in centers:
         ps = psi[ping, row, beam].astype(float)
-        el, clipped = elevation_from_phase(ps, az, images["baseline"], record.wavelength_m)
+        el, clipped = elevation_from_phase(ps, az, images.baseline_m, record.wavelength_m)
         pos = locate(2 * rng / record.sound_speed_m_s, az, ps,
                      transmitter_m=record.transmitter_center_m, center_a_m=centers["A"],
                      center_b_m=centers["B"], sound_speed_m_s=record.sound_speed_m_s,

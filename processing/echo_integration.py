@@ -3,7 +3,7 @@ mean backscattering cross-section σ_bs = s_v / n from the counted density n (th
 reason ABACUS counts at all — a density makes echo integration yield target strength).
 
 With an image calibrated in ADC counts (a point target of backscatter amplitude ρ peaks at
-G ρ |E_t| |D| 10^(−αr/10) / r², see acoustics/calibration.py), fish spread through the beam give
+G ρ |E_t| |D| 10^(−αr/10) / r², see processing/calibration.py), fish spread through the beam give
 each image cell (r, θ_b) the mean intensity
 
     E|I|² = N + s_v G² 10^(−αr/5) r⁻² L_r Ψ_b,
@@ -18,101 +18,12 @@ ping of a few fish fluctuates strongly (they sit anywhere in the beam).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from .beamforming import SubarrayGeometry
-from .compression import RangeFilter
+from .calibration import Calibration
 from .counting import CountingVolume
 
-__all__ = ["Calibration", "calibration_of", "range_energy_width_m", "beam_solid_angle_sr",
-           "volume_backscattering"]
-
-
-@dataclass(frozen=True)
-class Calibration:
-    """The sonar's part of the echo-integration equation.
-
-    Attributes
-    ----------
-    gain_counts_m : float
-        G: image peak (counts) of a 1 m backscatter amplitude at 1 m on the transmit axis.
-    azimuth_rad : ndarray, shape (A,)
-    elevation_width_rad : ndarray, shape (A,)
-        Φ(θ) = ∫ |E_t|² |D_rx|² cos φ dφ (rad) at each azimuth.
-    absorption_db_per_m : float
-    """
-
-    gain_counts_m: float
-    azimuth_rad: np.ndarray
-    elevation_width_rad: np.ndarray
-    absorption_db_per_m: float
-
-
-def calibration_of(tree) -> Calibration:
-    """Read the calibration from a dataset's /Sonar and /Environment.
-
-    Raises
-    ------
-    processing.dataset.DatasetError
-        The dataset does not carry a calibration (names what is missing and what it means).
-    """
-    from .dataset import DatasetError
-    sonar = tree["Sonar"].ds if "Sonar" in tree.children else None
-    missing = [k for k in ("calibration_gain", "two_way_elevation_width")
-               if sonar is None or k not in sonar]
-    env = tree["Environment"].ds if "Environment" in tree.children else None
-    if env is None or "absorption_indicative" not in env:
-        missing.append("/Environment/absorption_indicative")
-    if missing:
-        raise DatasetError(
-            f"echo integration needs the sonar's calibration: missing {', '.join(missing)} "
-            "(/Sonar/calibration_gain: counts x m for a 1 m backscatter amplitude at 1 m on axis; "
-            "/Sonar/two_way_elevation_width(calibration_azimuth): rad; see docs/dataset.md)")
-    return Calibration(float(sonar["calibration_gain"].values),
-                       np.asarray(sonar["calibration_azimuth"].values, float),
-                       np.asarray(sonar["two_way_elevation_width"].values, float),
-                       float(env["absorption_indicative"].values))
-
-
-def range_energy_width_m(rfilter: RangeFilter, sound_speed_m_s: float) -> float:
-    """L_r = ∫ |h(r)|² dr (m) of the compressed pulse h, normalised to peak 1.
-
-    By Parseval on the filter's FFT grid: ∫ |h|² dt = mean(|H|²) / fs with h(0) = mean(H) = 1.
-    """
-    resp = np.asarray(rfilter.response, float)
-    return float(np.mean(resp**2) / np.mean(resp) ** 2 / rfilter.rate_hz * sound_speed_m_s / 2)
-
-
-def beam_solid_angle_sr(calibration: Calibration, geometry: SubarrayGeometry, beam_angle_rad,
-                        wavelength_m: float) -> np.ndarray:
-    """Ψ_b = ∫ Φ(θ) |B_b(θ)|² dθ (sr) of each beam.
-
-    Parameters
-    ----------
-    calibration : Calibration
-    geometry : SubarrayGeometry
-        The image's elements and spatial window (B_b(θ) = Σ w e^{jk x (sinθ − sinθ_b)} / Σ w).
-    beam_angle_rad : array_like, shape (n_beams,)
-    wavelength_m : float
-
-    Returns
-    -------
-    ndarray, shape (n_beams,)
-    """
-    az = calibration.azimuth_rad
-    th = np.linspace(az[0], az[-1], max(20 * az.size, 4001))
-    phi = np.interp(th, az, calibration.elevation_width_rad)
-    x = geometry.positions_m[:, 0] - geometry.center_m[0]
-    w = geometry.weights / geometry.weights.sum()
-    k = 2 * np.pi / wavelength_m
-    # |B|² depends on sinθ − sinθ_b only: tabulate it once, finer than the θ grid needs
-    du = np.linspace(-2.0, 2.0, 80_001)
-    af2 = np.abs(np.exp(1j * k * np.outer(du, x)) @ w) ** 2
-    s = np.sin(th)
-    return np.array([np.trapezoid(phi * np.interp(s - np.sin(tb), du, af2), th)
-                     for tb in np.atleast_1d(beam_angle_rad)])
+__all__ = ["volume_backscattering"]
 
 
 def volume_backscattering(magnitude, range_m, beam_angle_rad, volume: CountingVolume,

@@ -14,9 +14,9 @@ import xarray as xr
 from .beamforming import SubarrayGeometry
 from .compression import RangeFilter
 from .dataset import TRUTH_GROUP, read_record
-from .detection import _noise_fit, detect_all, score_all
-from .echo_integration import (beam_solid_angle_sr, calibration_of, range_energy_width_m,
-                               volume_backscattering)
+from .detection import noise_fit, detect_all, score_all
+from .calibration import beam_solid_angle_sr, calibration_of, range_energy_width_m
+from .echo_integration import volume_backscattering
 from .noise import NoiseEstimateError
 from .settings import ProcessingSettings
 
@@ -90,11 +90,11 @@ def evaluate(tree: xr.DataTree, settings_list) -> dict:
         t_img, im = imaged[key]
         eg_index = rec.ping_index
         volume = products.volume_of(t_img, st)
-        det = detect_all(im, rec, st.detect, volume, upsample=im["interpolation"],
-                         pose=products._pose(t_img))
+        det = detect_all(im, rec, st.detect, volume, upsample=im.interpolation,
+                         pose=products.pose_of(t_img))
         truth = _truth(tree, eg_index)
-        res = score_all(det.table, truth, volume, n_pings, dr=im["range_resolution_m"],
-                        dtheta=im["azimuth_resolution_rad"], gate=st.count.gate_cells,
+        res = score_all(det.table, truth, volume, n_pings, dr=im.range_resolution_m,
+                        dtheta=im.azimuth_resolution_rad, gate=st.count.gate_cells,
                         unresolved=st.count.unresolved_cells)
         for k, v in res.items():
             if k in out:
@@ -102,16 +102,16 @@ def evaluate(tree: xr.DataTree, settings_list) -> dict:
         out["threshold_counts"][i] = det.threshold_per_ping
         # noise: the detector's own estimate where it has one (a region or a noise file); a
         # median over an image full of fish or sidelobes is no noise level to subtract
-        g = im["groups"].index(st.detect.image_group)
-        mags = np.abs(im["image"][:, g])
+        g = im.groups.index(st.detect.image_group)
+        mags = np.abs(im.image[:, g])
         sigma = np.zeros(n_pings)
         if st.detect.needs_noise or st.detect.noise.source != "image":
             n_key = (key, st.detect.image_group, st.detect.noise.model_dump_json())
             if n_key not in noise:
                 for p in range(n_pings):
                     try:
-                        sigma[p] = _noise_fit(mags[p:p + 1], st.detect, im["range_m"],
-                                              im["beam_angle_rad"], im["interpolation"]).sigma
+                        sigma[p] = noise_fit(mags[p:p + 1], st.detect, im.range_m,
+                                              im.beam_angle_rad, im.interpolation).sigma
                     except NoiseEstimateError:
                         sigma[p] = 0.0
                 noise[n_key] = sigma
@@ -127,9 +127,9 @@ def evaluate(tree: xr.DataTree, settings_list) -> dict:
                 geo = SubarrayGeometry(rec.element_position_m[rec.image_groups[st.detect.image_group]],
                                        st.image.spatial_window)
                 equivalent[ei_key] = (range_energy_width_m(rf, rec.sound_speed_m_s),
-                                      beam_solid_angle_sr(cal, geo, im["beam_angle_rad"], rec.wavelength_m))
+                                      beam_solid_angle_sr(cal, geo, im.beam_angle_rad, rec.wavelength_m))
             l_r, psi = equivalent[ei_key]
-            sv = volume_backscattering(mags, im["range_m"], im["beam_angle_rad"], volume, cal,
+            sv = volume_backscattering(mags, im.range_m, im.beam_angle_rad, volume, cal,
                                        range_width_m=l_r, solid_angle_sr=psi, noise_power=2 * sigma**2)
             out["s_v_per_m"][i] = sv
             dens = res["density_per_m3"]
@@ -147,14 +147,14 @@ def evaluate(tree: xr.DataTree, settings_list) -> dict:
 def _noise_histogram(mags, sigma, st: ProcessingSettings, im) -> np.ndarray:
     """Counts of |I|/σ̂ over the noise cells of each ping (native range samples only)."""
     ns = st.detect.noise
-    r, th = im["range_m"], im["beam_angle_rad"]
+    r, th = im.range_m, im.beam_angle_rad
     rows = np.ones(r.size, bool)
     cols = np.ones(th.size, bool)
     if ns.source == "region":
         rows = (r >= ns.range_m[0]) & (r <= ns.range_m[1])
         if ns.azimuth is not None:
             cols = (th >= ns.azimuth[0]) & (th <= ns.azimuth[1])
-    rows[np.arange(r.size) % max(im["interpolation"], 1) != 0] = False
+    rows[np.arange(r.size) % max(im.interpolation, 1) != 0] = False
     out = np.zeros((mags.shape[0], NOISE_BINS.size - 1))
     for p in range(mags.shape[0]):
         if sigma[p] > 0:

@@ -43,6 +43,12 @@ class Images:
     elevation_clipped : ndarray of bool or None
     baseline_m : ndarray, shape (3,) or None
         Phase centre of B minus that of A (m).
+    settings : ImageSettings
+        The settings the images were formed with.
+    phase_centers_m : dict of str -> ndarray, shape (3,)
+        Phase centre (m, sonar frame) of each image group's subarray.
+    range_resolution_m, azimuth_resolution_rad : float
+        Measured 3 dB widths of a point target's image cell.
     noise_power_gain : float
         Image noise power / channel noise power for white channel noise over the receiver band
         (per quadrature component).
@@ -64,6 +70,24 @@ class Images:
     phase_centers_m: dict = field(default_factory=dict)
     range_resolution_m: float = 0.0
     azimuth_resolution_rad: float = 0.0
+
+    @property
+    def interpolation(self) -> int:
+        """Range interpolation factor of the images (samples per range cell of the data)."""
+        return int(self.settings.interpolation)
+
+    def group_index(self, group: str) -> int:
+        """Index of an image group along axis 1 of :attr:`image`.
+
+        Raises
+        ------
+        ValueError
+            Not an image of these images (the message lists them).
+        """
+        if group not in self.groups:
+            raise ValueError(f"image group {group!r} is not an image of this dataset "
+                             f"(images: {', '.join(self.groups)})")
+        return self.groups.index(group)
 
 
 def _width_3db(profile, step):

@@ -20,9 +20,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["NoiseEstimateError", "RayleighFit", "rayleigh_fit"]
+__all__ = ["NoiseEstimateError", "RayleighFit", "rayleigh_fit", "rayleigh_mean", "RAYLEIGH_MEAN_FACTOR"]
 
 _MEDIAN_FACTOR = float(np.sqrt(2 * np.log(2)))
+#: μ / σ of a Rayleigh law: √(π/2)
+RAYLEIGH_MEAN_FACTOR = float(np.sqrt(np.pi / 2))
+
+
+def rayleigh_mean(sigma):
+    """μ = σ √(π/2): the mean of a Rayleigh law of scale σ (the thesis' noise mean μ).
+
+    Parameters
+    ----------
+    sigma : float or ndarray
+        Scale σ (image units), the noise standard deviation per quadrature component.
+
+    Returns
+    -------
+    float or ndarray
+        μ, same units and shape.
+    """
+    return sigma * RAYLEIGH_MEAN_FACTOR
 
 
 class NoiseEstimateError(ValueError):
@@ -111,5 +129,5 @@ def rayleigh_fit(magnitudes, *, estimator: str = "median", decimate=None, max_ks
     cdf = -np.expm1(-srt**2 / (2 * sigma**2))
     n = srt.size
     d = float(max(np.max(np.arange(1, n + 1) / n - cdf), np.max(cdf - np.arange(n) / n)))
-    return RayleighFit(sigma, sigma * float(np.sqrt(np.pi / 2)), int(flat.size), d,
+    return RayleighFit(sigma, rayleigh_mean(sigma), int(flat.size), d,
                        1.63 / np.sqrt(n), estimator)

@@ -131,9 +131,9 @@ def image_figures(images: dict, outdir: Path, *, ping: int = 0) -> list[Path]:
 
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
-    img = images["image"][ping]
-    groups = images["groups"]
-    r, th = images["range_m"], images["beam_angle_rad"]
+    img = images.image[ping]
+    groups = images.groups
+    r, th = images.range_m, images.beam_angle_rad
     paths = []
     fig, axes = plt.subplots(1, len(groups), figsize=(5.5 * len(groups), 7), constrained_layout=True,
                              squeeze=False)
@@ -158,9 +158,9 @@ def image_figures(images: dict, outdir: Path, *, ping: int = 0) -> list[Path]:
     ax.set_title(f"range profiles, subarray {groups[0]}, ping {ping}")
     paths.append(save(fig, outdir / "range_profiles.png"))
     plt.close(fig)
-    if images.get("interferometric_phase") is not None:
+    if images.psi_rad is not None:
         fig, ax = plt.subplots(figsize=(6.5, 6), constrained_layout=True)
-        plot_phase_map(ax, images["interferometric_phase"][ping], np.abs(img[0]), r, th)
+        plot_phase_map(ax, images.psi_rad[ping], np.abs(img[0]), r, th)
         ax.set_title(f"interferometric phase ψ_AB, ping {ping}")
         paths.append(save(fig, outdir / "phase.png"))
         plt.close(fig)
@@ -181,9 +181,10 @@ def count_figures(tree, outdir: Path, *, pings=(0,), max_pings: int = 5,
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     im = images_of(tree)
-    det = detections_of(tree)
-    cnt = counts_of(tree)
-    r, th = im["range_m"], im["beam_angle_rad"]
+    det = {k: v.values for k, v in detections_of(tree).data_vars.items()}
+    counts = counts_of(tree)
+    cnt = {k: v.values for k, v in counts.variables.items()}
+    r, th = im.range_m, im.beam_angle_rad
     paths = []
     truth = None
     if "Simulation" in tree.children and "Ground_truth" in tree["Simulation"].children:
@@ -195,7 +196,7 @@ def count_figures(tree, outdir: Path, *, pings=(0,), max_pings: int = 5,
         fig, axes = plt.subplots(1, 3, figsize=(16, 6), constrained_layout=True)
         xs = det["range_m"][k] * np.sin(det["azimuth_rad"][k])
         zs = det["range_m"][k] * np.cos(det["azimuth_rad"][k])
-        plot_fan(axes[0], np.abs(im["image"][p, g]), r, th,
+        plot_fan(axes[0], np.abs(im.image[p, g]), r, th,
                  title=f"ping {int(cnt['ping_index'][p])}: {int(k.sum())} detections",
                  detections=(xs, zs))
         inside = det["in_volume"][k]

@@ -110,6 +110,13 @@ def image(tree: xr.DataTree, settings=None) -> xr.DataTree:
     ------
     processing.dataset.DatasetError
         The dataset lacks what imaging needs (named in the message).
+
+    Examples
+    --------
+    >>> tree = processing.image(processing.open_tree("two.nc"))          # doctest: +SKIP
+    >>> im = processing.images_of(tree)                                   # doctest: +SKIP
+    >>> im.image.shape        # (pings, image groups A/B, range cells, beams)  # doctest: +SKIP
+    (1, 2, 2276, 32)
     """
     st = resolve_settings(tree, settings)
     rec = read_record(tree, source=str(tree.attrs.get("title", "dataset")))
@@ -123,24 +130,39 @@ def image(tree: xr.DataTree, settings=None) -> xr.DataTree:
     return out
 
 
-def images_of(tree: xr.DataTree) -> dict:
-    """Arrays of /Processing as numpy (complex image rebuilt), for detection and plots."""
+def images_of(tree: xr.DataTree) -> Images:
+    """The images of /Processing (the same :class:`~processing.imaging.Images` that
+    :func:`processing.imaging.form_images` returns).
+
+    Raises
+    ------
+    DatasetError
+        No /Processing group (run :func:`image` first).
+    """
     if PROCESSING_GROUP not in tree.children:
         raise DatasetError("the dataset has no /Processing group: run processing.image first")
     ds = tree[PROCESSING_GROUP].ds
-    out = {"image": ds["image_r"].values.astype(float) + 1j * ds["image_i"].values.astype(float),
-           "groups": [str(g) for g in ds["image_group"].values],
-           "range_m": ds["image_range"].values, "time_s": ds["image_time"].values,
-           "beam_angle_rad": ds["beam_angle"].values,
-           "noise_power_gain": float(ds.attrs.get("image_noise_power_gain", 1.0)),
-           "range_resolution_m": float(ds.attrs.get("range_resolution_m", 0.0)),
-           "azimuth_resolution_rad": float(ds.attrs.get("azimuth_resolution_rad", 0.0)),
-           "interpolation": int(ds.attrs.get("interpolation", 1)),
-           "phase_centers": {k: np.asarray(v) for k, v in
-                             json.loads(ds.attrs.get("phase_centers_json", "{}")).items()}}
-    for k in ("interferometric_phase", "elevation", "elevation_clipped", "baseline"):
-        out[k] = ds[k].values if k in ds else None
-    return out
+    settings = ImageSettings()
+    if "settings_yaml" in ds.attrs:
+        section = (yaml.safe_load(ds.attrs["settings_yaml"]) or {}).get("image", {})
+        settings = validate_file(ImageSettings, section, file="/Processing settings_yaml (image)")
+    opt = {k: ds[k].values if k in ds else None
+           for k in ("interferometric_phase", "elevation", "elevation_clipped", "baseline")}
+    return Images(
+        image=ds["image_r"].values.astype(float) + 1j * ds["image_i"].values.astype(float),
+        groups=tuple(str(g) for g in ds["image_group"].values),
+        range_m=ds["image_range"].values, time_s=ds["image_time"].values,
+        beam_angle_rad=ds["beam_angle"].values,
+        psi_rad=opt["interferometric_phase"], elevation_rad=opt["elevation"],
+        elevation_clipped=(None if opt["elevation_clipped"] is None
+                           else opt["elevation_clipped"].astype(bool)),
+        baseline_m=opt["baseline"],
+        noise_power_gain=float(ds.attrs.get("image_noise_power_gain", 1.0)),
+        settings=settings,
+        phase_centers_m={k: np.asarray(v) for k, v in
+                         json.loads(ds.attrs.get("phase_centers_json", "{}")).items()},
+        range_resolution_m=float(ds.attrs.get("range_resolution_m", 0.0)),
+        azimuth_resolution_rad=float(ds.attrs.get("azimuth_resolution_rad", 0.0)))
 
 
 # ---------------------------------------------------------------- detect, count
@@ -166,7 +188,16 @@ def volume_of(tree: xr.DataTree, settings: ProcessingSettings):
                            image_range_m=rng, settings=cs)
 
 
-def _pose(tree):
+def pose_of(tree):
+    """The sonar's pose in the world frame, from /Platform.
+
+    Returns
+    -------
+    (position_m, rotation) or None
+        ``position_m`` shape (3,) (m, world frame: x forward, y starboard, z down);
+        ``rotation`` shape (3, 3), columns the sonar axes in world coordinates. None when
+        the dataset has no pose (sonar frame = world frame).
+    """
     if "Platform" in tree.children and "sonar_rotation" in tree["Platform"].ds:
         ds = tree["Platform"].ds
         return ds["sonar_position"].values.astype(float), ds["sonar_rotation"].values.astype(float)
@@ -187,6 +218,11 @@ def detect(tree: xr.DataTree, settings=None) -> xr.DataTree:
         A noise-derived threshold on noise-free images.
     processing.dataset.DatasetError
         Missing pieces of the dataset, named.
+
+    Examples
+    --------
+    >>> det = processing.detections_of(processing.detect(tree))          # doctest: +SKIP
+    >>> det[["ping", "range_m", "azimuth_rad", "elevation_rad"]].to_dataframe()  # doctest: +SKIP
     """
     from .detection import detect_all
     from .noise import NoiseEstimateError
@@ -201,11 +237,11 @@ def detect(tree: xr.DataTree, settings=None) -> xr.DataTree:
         from .dataset import open_tree
         noise_tree = image(open_tree(st.detect.noise.file), st)
         ni = images_of(noise_tree)
-        g = ni["groups"].index(st.detect.image_group) if st.detect.image_group in ni["groups"] else 0
-        noise_mags = np.abs(ni["image"][:, g])
+        g = ni.groups.index(st.detect.image_group) if st.detect.image_group in ni.groups else 0
+        noise_mags = np.abs(ni.image[:, g])
     try:
-        det = detect_all(images, rec, st.detect, volume, upsample=images["interpolation"],
-                         pose=_pose(tree), noise_magnitudes=noise_mags)
+        det = detect_all(images, rec, st.detect, volume, upsample=images.interpolation,
+                         pose=pose_of(tree), noise_magnitudes=noise_mags)
     except ValueError as exc:
         if isinstance(exc, NoiseEstimateError):
             raise
@@ -239,16 +275,31 @@ def detect(tree: xr.DataTree, settings=None) -> xr.DataTree:
     return out
 
 
-def detections_of(tree: xr.DataTree) -> dict:
-    """The detections table as numpy arrays (booleans restored)."""
+def detections_of(tree: xr.DataTree) -> xr.Dataset:
+    """The detections table: one row per detection (dim ``detection``), flags as booleans.
+
+    Variables (units in each variable's attributes): ``ping`` (index in the file),
+    ``ping_index``, ``row``, ``beam``, ``range_m``, ``azimuth_rad``, ``elevation_rad``,
+    ``psi_rad``, sonar-frame ``x_m``/``y_m``/``z_m``, world ``world_x_m``/``world_y_m``/
+    ``world_z_m``, ``amplitude`` (ADC counts), ``threshold``, ``snr_db``, ``in_span``,
+    ``in_volume``, ``elevation_clipped``. ``.to_dataframe()`` gives a pandas table.
+
+    Raises
+    ------
+    DatasetError
+        No /Processing/Detections (run :func:`detect` first).
+    """
     if PROCESSING_GROUP not in tree.children or "Detections" not in tree[PROCESSING_GROUP].children:
         raise DatasetError("the dataset has no /Processing/Detections: run processing.detect first")
     ds = tree[DETECTIONS_GROUP].ds
-    out = {k: ds[k].values for k in ds.data_vars if "detection" in ds[k].dims}
-    for k in ("in_span", "in_volume", "elevation_clipped"):
-        if k in out:
-            out[k] = out[k].astype(bool)
-    return out
+    table = ds[[k for k in ds.data_vars if ds[k].dims == ("detection",)]]
+    return table.assign({k: table[k].astype(bool) for k in ("in_span", "in_volume", "elevation_clipped")
+                         if k in table})
+
+
+def _columns(table: xr.Dataset) -> dict:
+    """A table's columns as numpy arrays (what the scoring and plotting code indexes)."""
+    return {k: table[k].values for k in table.data_vars}
 
 
 def _truth(tree, ping_index):
@@ -274,12 +325,18 @@ def count(tree: xr.DataTree, settings=None) -> xr.DataTree:
         A copy with /Processing/Counts (dim ``ping_time``): count_before, count_after,
         density_per_m3 and, with ground truth, true_in_volume, error_before, error_after,
         hits/misses/false alarms before and after interferometry, shared_cell_misses.
+
+    Examples
+    --------
+    >>> tree = processing.count(acoustics.simulate(scene, pings=range(3)))  # doctest: +SKIP
+    >>> processing.counts_of(tree)["count_after"].values                    # doctest: +SKIP
+    array([2, 2, 2])
     """
     from .detection import score_all
     st = resolve_settings(tree, settings)
     if (PROCESSING_GROUP not in tree.children or "Detections" not in tree[PROCESSING_GROUP].children):
         tree = detect(tree, st)
-    table = detections_of(tree)
+    table = _columns(detections_of(tree))
     volume = volume_of(tree, st)
     eg = tree[ELEMENT_GROUP].ds
     ping_index = eg["ping_index"].values if "ping_index" in eg.variables else np.arange(eg.sizes["ping_time"])
@@ -299,20 +356,26 @@ def count(tree: xr.DataTree, settings=None) -> xr.DataTree:
     return out
 
 
-def counts_of(tree: xr.DataTree) -> dict:
+def counts_of(tree: xr.DataTree) -> xr.Dataset:
+    """Counts per ping (dim ``ping_time``, coordinate ``ping_index``): ``count_before``,
+    ``count_after``, ``density_per_m3`` and, with ground truth, ``true_in_volume``,
+    ``error_before``/``error_after``, hits, misses and false alarms; the counting volume (m³) is
+    the attribute ``counting_volume_m3``.
+
+    Raises
+    ------
+    DatasetError
+        No /Processing/Counts (run :func:`count` first).
+    """
     if PROCESSING_GROUP not in tree.children or "Counts" not in tree[PROCESSING_GROUP].children:
         raise DatasetError("the dataset has no /Processing/Counts: run processing.count first")
-    ds = tree[COUNTS_GROUP].ds
-    out = {k: ds[k].values for k in ds.data_vars}
-    out["ping_index"] = ds["ping_index"].values
-    out["volume_m3"] = float(ds.attrs["counting_volume_m3"])
-    return out
+    return tree[COUNTS_GROUP].ds
 
 
 def write_csv(tree: xr.DataTree, path) -> Path:
     """Write the detections table as CSV (atomically)."""
     import csv
-    table = detections_of(tree)
+    table = _columns(detections_of(tree))
     path = Path(path)
     keys = list(table)
     with staged(path) as tmp, open(tmp, "w", newline="") as fh:
@@ -334,7 +397,10 @@ def _fmt(v):
 def count_summary(tree: xr.DataTree) -> dict:
     """Per-ping counts and the run's summary as plain Python (what ``abacus count --json``
     prints): means and standard deviations of counts, errors and density."""
-    c = counts_of(tree)
+    ds = counts_of(tree)
+    c = {k: ds[k].values for k in ds.data_vars}
+    c["ping_index"] = ds["ping_index"].values
+    c["volume_m3"] = float(ds.attrs["counting_volume_m3"])
     n = len(c["ping_index"])
     per = []
     for i in range(n):

@@ -12,13 +12,13 @@ from __future__ import annotations
 import base64
 import html
 import json
-import math
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
 from .atomic import write_text_atomic
+from .noise import rayleigh_mean
 from .plots import save
 
 __all__ = ["write_report", "report_figures", "plateau", "PLATEAU_TARGETS"]
@@ -31,7 +31,7 @@ def _plt():
     return plt
 
 
-def _derived_in_sweep_units(ds: xr.Dataset):
+def derived_in_sweep_units(ds: xr.Dataset):
     """The scene's own (derived) threshold in the units of a threshold sweep, or None."""
     if ds.attrs.get("sweep_key") != "threshold":
         return None
@@ -46,7 +46,7 @@ def _derived_in_sweep_units(ds: xr.Dataset):
     sigma = float(np.nanmedian(ds["noise_sigma_counts"].isel(setting=0)))
     if not np.isfinite(sigma) or sigma <= 0:
         return None
-    mu = sigma * math.sqrt(math.pi / 2)
+    mu = rayleigh_mean(sigma)
     return t / mu * (det.get("thesis_noise_mean", 139.8) if units == "thesis" else 1.0)
 
 
@@ -148,7 +148,7 @@ def report_figures(ds: xr.Dataset, outdir) -> list[tuple[str, Path, str]]:
         ax.bar(x, pdf, width=width, color="0.75", label="noise cells")
         xx = np.linspace(0, edges[-1] * sig, 400)
         ax.plot(xx, xx / sig**2 * np.exp(-xx**2 / (2 * sig**2)), "r-",
-                label=f"Rayleigh, σ = {sig:.2f} counts (μ = {sig * math.sqrt(math.pi / 2):.2f})")
+                label=f"Rayleigh, σ = {sig:.2f} counts (μ = {rayleigh_mean(sig):.2f})")
         ax.set_xlabel("|I| in the noise cells (ADC counts)")
         ax.set_ylabel("probability density (1/count)")
         ax.grid(alpha=0.3)
@@ -172,7 +172,7 @@ def report_figures(ds: xr.Dataset, outdir) -> list[tuple[str, Path, str]]:
         else:
             ax.plot(v, sw["count_after_mean"], "o-", ms=3, label="counted per ping")
             ax.set_ylabel("mean count per ping (targets)")
-        derived = _derived_in_sweep_units(ds)
+        derived = derived_in_sweep_units(ds)
         if derived is not None:
             ax.axvline(derived, color="tab:red", ls="--", label=f"derived threshold ({derived:.4g})")
         flat = plateau(ds)
@@ -266,7 +266,7 @@ def write_report(ds: xr.Dataset, out_dir) -> Path:
                     f"{float(np.nanmedian(base['threshold_counts'])):.3f}"])
     if np.isfinite(base["noise_sigma_counts"]).any():
         sig = float(np.nanmedian(base["noise_sigma_counts"]))
-        summary.append(["noise σ̂ / μ̂ (ADC counts)", f"{sig:.3f} / {sig * math.sqrt(math.pi / 2):.3f}"])
+        summary.append(["noise σ̂ / μ̂ (ADC counts)", f"{sig:.3f} / {rayleigh_mean(sig):.3f}"])
     if has_truth:
         for k in ("error_before", "error_after"):
             summary.append([f"{k.replace('_', ' ')} (mean ± s.d., targets per ping)",
@@ -274,7 +274,7 @@ def write_report(ds: xr.Dataset, out_dir) -> Path:
         summary.append(["true in volume per ping (mean)", f"{float(base['true_in_volume'].mean()):.3f}"])
     flat = plateau(ds)
     if flat is not None:
-        derived = _derived_in_sweep_units(ds)
+        derived = derived_in_sweep_units(ds)
         summary.append([f"plateau of the sweep (|mean error after| ≤ {PLATEAU_TARGETS:g})",
                         f"{flat[0]:.4g} to {flat[1]:.4g}" + (
                             f"; derived threshold {derived:.4g} " + ("on it" if flat[0] <= derived <= flat[1] else "OFF it")

@@ -22,6 +22,8 @@ import numpy as np
 from scipy.ndimage import correlate, rank_filter
 from scipy.optimize import brentq
 
+from .noise import rayleigh_mean
+
 __all__ = ["CONVENTIONS", "cell_pfa", "rayleigh_threshold", "ca_cfar_factor", "os_cfar_factor",
            "cfar_threshold"]
 
@@ -50,7 +52,7 @@ def rayleigh_threshold(sigma: float, pfa_cell: float, *, convention: str = "corr
     if convention == "correct":
         return float(sigma * np.sqrt(-2.0 * np.log(pfa_cell)))
     if convention == "thesis":
-        mu = sigma * np.sqrt(np.pi / 2)
+        mu = rayleigh_mean(sigma)
         return float(np.sqrt(-2.0 * mu**2 * (np.pi / 2) * np.log(pfa_cell)))
     raise ValueError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
 

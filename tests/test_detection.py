@@ -110,24 +110,24 @@ def noise_only():
 
 def test_noise_only_mean_matches_sigma_and_the_filter_gains(noise_only):
     im = processing.images_of(noise_only)
-    mags = np.abs(im["image"])
+    mags = np.abs(im.image)
     fit = rayleigh_fit(mags, estimator="ml", decimate=(Ellipsis, slice(None, None, 4), slice(None, None, 4)))
     sigma_ch = 126.68
-    expected_mu = sigma_ch * math.sqrt(im["noise_power_gain"]) * math.sqrt(math.pi / 2)
+    expected_mu = sigma_ch * math.sqrt(im.noise_power_gain) * math.sqrt(math.pi / 2)
     assert fit.mu == pytest.approx(expected_mu, rel=0.02)
     assert fit.rayleigh_like
     # the gain is what the filters predict: matched filter (Hann-shaped |U|², Hamming window,
     # noise in the fs/2 band) times the Hamming beamformer Σw²/(Σw)²
     from processing.compression import window
     w = window("hamming", 8)
-    assert im["noise_power_gain"] / (np.sum(w**2) / np.sum(w) ** 2) == pytest.approx(0.0137, rel=0.1)
+    assert im.noise_power_gain / (np.sum(w**2) / np.sum(w) ** 2) == pytest.approx(0.0137, rel=0.1)
 
 
 def test_noise_only_false_alarm_rate_per_cell(noise_only):
     """At the threshold derived for P_fa,cell = 1e-3 the measured exceedance rate of noise cells
     is within a factor 2 of 1e-3, over more than a million cells."""
     im = processing.images_of(noise_only)
-    mags = np.abs(im["image"][:, 0])
+    mags = np.abs(im.image[:, 0])
     assert mags.size >= 1_000_000
     fit = rayleigh_fit(mags, estimator="median")
     t = rayleigh_threshold(fit.sigma, 1e-3)
@@ -154,7 +154,7 @@ def test_empty_image_with_a_relative_threshold_detects_nothing_without_error():
     det = processing.detections_of(processing.detect(tree))
     assert det["range_m"].size == 0
     counts = processing.counts_of(processing.count(tree))
-    assert counts["count_after"].tolist() == [0]
+    assert counts["count_after"].values.tolist() == [0]
 
 
 # -------------------------------------------------------------- 3-D location
@@ -284,9 +284,9 @@ def test_elevation_beyond_the_arcsin_range_is_clipped_and_flagged():
     argument exceeds 1 in those cells. They are clipped and flagged; nothing is NaN."""
     tree = processing.detect(simulate(scene(SMALL_BASELINE)))
     im = processing.images_of(tree)
-    assert np.all(np.isfinite(im["elevation"]))
-    assert 0 < im["elevation_clipped"].mean() < 0.5
-    assert np.all(np.abs(im["elevation"][im["elevation_clipped"].astype(bool)]) <= np.pi / 2 + 1e-6)
+    assert np.all(np.isfinite(im.elevation_rad))
+    assert 0 < im.elevation_clipped.mean() < 0.5
+    assert np.all(np.abs(im.elevation_rad[im.elevation_clipped.astype(bool)]) <= np.pi / 2 + 1e-6)
     det = processing.detections_of(tree)
     assert det["range_m"].size >= 1
     assert np.all(np.isfinite(det["elevation_rad"])) and np.all(np.isfinite(det["z_m"]))

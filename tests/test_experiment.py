@@ -19,8 +19,8 @@ from acoustics.simulation.run import simulate
 from processing.beamforming import SubarrayGeometry
 from processing.compression import RangeFilter
 from processing.dataset import read_record
-from processing.echo_integration import (beam_solid_angle_sr, calibration_of, range_energy_width_m,
-                                         volume_backscattering)
+from processing.calibration import beam_solid_angle_sr, calibration_of, range_energy_width_m
+from processing.echo_integration import volume_backscattering
 from processing.evaluate import PER_PING_KEYS
 
 from .conftest import SCENES
@@ -159,10 +159,10 @@ def test_echo_integration_recovers_a_known_s_v():
     rf = RangeFilter.design(rec.replica, n_samples=rec.samples.shape[-1], rate_hz=rec.rate_hz,
                             bandwidth_hz=rec.bandwidth_hz, range_window=st.image.range_window)
     geo = SubarrayGeometry(rec.element_position_m[rec.image_groups["A"]], st.image.spatial_window)
-    sv = volume_backscattering(np.abs(im["image"][:, 0]), im["range_m"], im["beam_angle_rad"],
+    sv = volume_backscattering(np.abs(im.image[:, 0]), im.range_m, im.beam_angle_rad,
                                processing.volume_of(tree, st), cal,
                                range_width_m=range_energy_width_m(rf, rec.sound_speed_m_s),
-                               solid_angle_sr=beam_solid_angle_sr(cal, geo, im["beam_angle_rad"],
+                               solid_angle_sr=beam_solid_angle_sr(cal, geo, im.beam_angle_rad,
                                                                   rec.wavelength_m))
     assert abs(10 * np.log10(sv.mean() / (0.5 * 0.01))) < 0.6
 
@@ -195,7 +195,7 @@ def test_pelagic_scenario_target_strength_and_threshold_plateau(tmp_path):
       derived from the noise statistics (correct convention, α = 1e-7) lies on the plateau of
       near-zero mean count error after interferometry (±0.5 targets per ping, the report's
       definition), and the plateau spans several sweep points (thesis §6.3.6, Fig. 6.22)."""
-    from processing.report import _derived_in_sweep_units, plateau
+    from processing.report import derived_in_sweep_units, plateau
     path = run_experiment(load("default.yaml"), tmp_path / "ts", workers=0, figure_pings=0,
                           sweep=parse_sweep("threshold=600:2000:100"), report=False)
     with xr.open_dataset(path) as ds:
@@ -203,7 +203,7 @@ def test_pelagic_scenario_target_strength_and_threshold_plateau(tmp_path):
     est, true = float(ds["ts_estimate_db"][0]), float(ds["ts_true_db"][0])
     assert math.isfinite(est) and abs(est - true) < 1.0
     lo, hi = plateau(ds)
-    derived = _derived_in_sweep_units(ds)
+    derived = derived_in_sweep_units(ds)
     assert lo <= derived <= hi and hi - lo >= 300
 
 

@@ -37,8 +37,8 @@ def imaged(sc, settings=None):
 
 
 def brightest(im, group=0, ping=0, rmin=None, rmax=None):
-    mag = np.abs(im["image"][ping, group])
-    r = im["range_m"]
+    mag = np.abs(im.image[ping, group])
+    r = im.range_m
     sel = np.ones(r.size, bool)
     if rmin is not None:
         sel &= (r >= rmin) & (r <= rmax)
@@ -54,13 +54,13 @@ def two():
 
 def test_two_targets_at_true_range_and_azimuth(two):
     tree, im = two
-    dr = np.median(np.diff(im["range_m"]))
-    du = np.median(np.diff(np.sin(im["beam_angle_rad"])))
+    dr = np.median(np.diff(im.range_m))
+    du = np.median(np.diff(np.sin(im.beam_angle_rad)))
     for g in range(2):
         for rng, az, lo, hi in ((17.0, 0.7, 16, 18), (21.0, -1.4, 20, 22)):
             i, j, _ = brightest(im, g, rmin=lo, rmax=hi)
-            assert abs(im["range_m"][i] - rng) <= dr + 1e-9  # ±1 range cell
-            assert abs(np.sin(im["beam_angle_rad"][j]) - math.sin(math.radians(az))) <= du / 2 + 1e-12
+            assert abs(im.range_m[i] - rng) <= dr + 1e-9  # ±1 range cell
+            assert abs(np.sin(im.beam_angle_rad[j]) - math.sin(math.radians(az))) <= du / 2 + 1e-12
 
 
 def test_image_is_calibrated_to_the_echo_amplitude():
@@ -89,9 +89,9 @@ def test_elevation_of_a_target_at_0p3_degrees():
     i, j, mag = brightest(im)
     # the cell's own elevation uses its beam angle; the target's refined azimuth removes the
     # bias that subarray B's x offset couples in (b_x Δsinθ / b_y, up to 0.07°)
-    r_ref, az_ref, _ = refine_peaks(mag, [i], [j], im["range_m"], im["beam_angle_rad"])
-    phi, clipped = elevation_from_phase(im["interferometric_phase"][0, i, j], az_ref[0],
-                                        im["baseline"], LAMBDA_M)
+    r_ref, az_ref, _ = refine_peaks(mag, [i], [j], im.range_m, im.beam_angle_rad)
+    phi, clipped = elevation_from_phase(im.psi_rad[0, i, j], az_ref[0],
+                                        im.baseline_m, LAMBDA_M)
     assert not np.any(clipped)
     assert abs(math.degrees(float(np.squeeze(phi))) - 0.3) < 0.05
     assert abs(math.degrees(az_ref[0]) - 0.7) < 0.05
@@ -120,10 +120,10 @@ def test_arcsin_argument_is_clipped_and_flagged_never_nan():
 
 
 def _peak_near(im, deg, width, *, group=0, rmin, rmax):
-    mag = np.abs(im["image"][0, group])
-    r = im["range_m"]
+    mag = np.abs(im.image[0, group])
+    r = im.range_m
     rows = (r >= rmin) & (r <= rmax)
-    th = np.degrees(im["beam_angle_rad"])
+    th = np.degrees(im.beam_angle_rad)
     cols = np.abs(th - deg) <= width
     sub = mag[np.ix_(rows, cols)]
     i, j = np.unravel_index(np.argmax(sub), sub.shape)
@@ -146,8 +146,8 @@ def test_target_outside_the_scan_folds_to_one_degree_weakened_by_the_beams():
     _, direct = imaged(direct_scene)
     ang, _ = _peak_near(ghost, 1.0, 1.5, rmin=16, rmax=18)
     assert abs(ang - 1.0) <= 0.5
-    g = np.abs(ghost["image"][0, 0]).max()
-    d = np.abs(direct["image"][0, 0]).max()
+    g = np.abs(ghost.image[0, 0]).max()
+    d = np.abs(direct.image[0, 0]).max()
     # what the ghost loses: the transmit beam (and the receive elements' own pattern) at 15°
     setup = make_setup(direct_scene)
     k = setup.medium.wavenumber_rad_m(setup.pulse.center_frequency_hz)
@@ -168,11 +168,11 @@ def test_staggered_receiver_ghost_near_minus_3p4_and_none_without_stagger():
     _, im = imaged(sc)
     _, im0 = imaged(flat)
     # the stagger's contribution alone: a ghost arcsin(sin 3.5° − λ/2d) = −3.46° away
-    diff = np.abs(im["image"][0, 0] - im0["image"][0, 0])
-    ref = np.abs(im0["image"][0, 0]).max()
+    diff = np.abs(im.image[0, 0] - im0.image[0, 0])
+    ref = np.abs(im0.image[0, 0]).max()
     i, j = np.unravel_index(np.argmax(diff), diff.shape)
     expect = math.degrees(math.asin(math.sin(math.radians(3.5)) - LAMBDA_M / 0.03))
-    assert abs(math.degrees(im["beam_angle_rad"][j]) - expect) <= 0.5
+    assert abs(math.degrees(im.beam_angle_rad[j]) - expect) <= 0.5
     assert abs(expect + 3.4) < 0.1
     beta = 2 * math.pi / LAMBDA_M * 0.002 * math.sin(math.radians(1.0))
     assert 20 * np.log10(diff.max() / ref) == pytest.approx(20 * math.log10(math.tan(beta)), abs=1.0)
@@ -203,7 +203,7 @@ def test_point_target_response_widths_and_sidelobes():
     setup = make_setup(sc)
     # azimuth: the Hamming-weighted 8-element array factor x element pattern, evaluated directly
     rx = setup.sonar.receiver.elements.subset(range(8))
-    th = im["beam_angle_rad"]
+    th = im.beam_angle_rad
     x = rx.center_m[:, 0] - rx.center_m[:, 0].mean()
     w = window("hamming", 8)
     k = 2 * math.pi / LAMBDA_M
@@ -231,7 +231,7 @@ def test_point_target_response_widths_and_sidelobes():
     t = np.arange(pulse.size) / (rec.rate_hz * up)
     pulse = np.roll(pulse, pulse.size // 2)
     width_theory = _cut_width(pulse, t) * 1530 / 2
-    assert _cut_width(mag[:, j], im["range_m"]) == pytest.approx(width_theory, rel=0.03)
+    assert _cut_width(mag[:, j], im.range_m) == pytest.approx(width_theory, rel=0.03)
     # and it is the c/2B resolution broadened by the two tapers (between 1.5x and 2.5x)
     assert 1.5 < width_theory / (1530 / (2 * 20_000)) < 2.5
 
@@ -253,9 +253,9 @@ def test_phase_centre_correction_removes_the_phase_slope_across_beams(two):
     _, im = two
     i, j, mag = brightest(im, 0, rmin=16, rmax=18)
     lobe = np.flatnonzero(mag[i] > 0.3 * mag[i, j])
-    phase = np.unwrap(np.angle(im["image"][0, 0, i, lobe] * np.conj(im["image"][0, 0, i, j])))
+    phase = np.unwrap(np.angle(im.image[0, 0, i, lobe] * np.conj(im.image[0, 0, i, j])))
     slope = np.polyfit(lobe - j, phase, 2)[1]  # coefficient of the linear term
-    du = np.median(np.diff(np.sin(im["beam_angle_rad"])))
+    du = np.median(np.diff(np.sin(im.beam_angle_rad)))
     uncorrected = 2 * math.pi / LAMBDA_M * 7 * 0.015 / 2 * du  # the DFT's slope per beam
     assert uncorrected > 0.5
     assert abs(slope) < 0.02 * uncorrected

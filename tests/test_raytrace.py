@@ -351,7 +351,7 @@ def test_imaged_calibration_sphere_reads_its_target_strength():
         "range_m": [19.0, 21.0], "interpolation": 16, "beamformer": "delay_and_sum",
         "n_beams": 65, "azimuth_span_deg": 4.0}})
     im = processing.images_of(tree)
-    mag = np.abs(im["image"][0, 0])
+    mag = np.abs(im.image[0, 0])
     setup = make_setup(scene)
     a, r = 0.01905, 20.0 - 0.01905                    # the echo comes from the sphere's front
     alpha = setup.medium.absorption_db_per_m
@@ -413,8 +413,8 @@ def lambert_floor_ratio(scene, tree, depression_deg, beams=range(4, 29, 2)):
     the image cells within ±0.1 m of where each beam meets the floor."""
     dep = math.radians(depression_deg)
     im = processing.images_of(tree)
-    mean_i = np.mean(np.abs(im["image"][:, 0]) ** 2, axis=0)
-    r_img, th = im["range_m"], im["beam_angle_rad"]
+    mean_i = np.mean(np.abs(im.image[:, 0]) ** 2, axis=0)
+    r_img, th = im.range_m, im.beam_angle_rad
     setup = make_setup(scene)
     pose, c = setup.sonar.pose, setup.medium.sound_speed_m_s
     k = setup.medium.wavenumber_rad_m(setup.pulse.center_frequency_hz)
@@ -484,9 +484,9 @@ processing:
 """)
     tree = processing.image(simulate(scene))
     im = processing.images_of(tree)
-    mean_i = np.mean(np.abs(im["image"][:, 0]) ** 2, axis=0)
-    r_img, th = im["range_m"], im["beam_angle_rad"]
-    half = 0.5 * im["azimuth_resolution_rad"]
+    mean_i = np.mean(np.abs(im.image[:, 0]) ** 2, axis=0)
+    r_img, th = im.range_m, im.beam_angle_rad
+    half = 0.5 * im.azimuth_resolution_rad
     cell = r_img[1] - r_img[0]
     assert 0 < half < math.radians(3)
     for b in range(len(th)):
@@ -519,8 +519,8 @@ def test_a_rock_between_sonar_and_target_hides_it_and_moving_it_away_restores_it
     assert seen[TRUTH_GROUP].ds["target_shadowed"].values.tolist() == [0]
     settings = {"image": {"range_m": [19.0, 21.0]}, "detect": {"method": "fraction_of_peak",
                                                                "fraction": 0.5}}
-    img_h = np.abs(processing.images_of(processing.image(hidden, settings))["image"])
-    img_s = np.abs(processing.images_of(processing.image(seen, settings))["image"])
+    img_h = np.abs(processing.images_of(processing.image(hidden, settings)).image)
+    img_s = np.abs(processing.images_of(processing.image(seen, settings)).image)
     # the visible target's image peak is K/r² ~ 16384 x 16 / 400 ~ 650 counts; hidden: nothing
     assert img_s.max() > 100 and img_h.max() == 0
     det = processing.detections_of(processing.detect(seen, settings))

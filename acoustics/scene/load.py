@@ -4,6 +4,7 @@ from __future__ import annotations
 import warnings
 from pathlib import Path
 
+from acoustics.scene.builtin import resolve_scene_argument
 from acoustics.scene.checks import cross_check
 from acoustics.scene.errors import SceneError, SceneWarning
 from acoustics.scene.schema import Scene
@@ -45,7 +46,9 @@ def load_scene(path: str | Path, *, check: bool = True) -> Scene:
     Parameters
     ----------
     path : str or Path
-        A YAML scene file. Mesh paths inside it resolve relative to its folder.
+        A YAML scene file (mesh paths inside it resolve relative to its folder), or the name of
+        a scene shipped with abacus (``"default"``, ``"two_targets"``, ...; see
+        :func:`acoustics.scene.builtin.builtin_scenes`) when no such file exists.
     check : bool
         Run the physics cross-checks, which emit :class:`SceneWarning` (never fail).
 
@@ -59,8 +62,16 @@ def load_scene(path: str | Path, *, check: bool = True) -> Scene:
     SceneError
         Unreadable file, YAML syntax error, unknown key, wrong type, bad value. The
         message names the file, line, key path, value and what is accepted.
+
+    Examples
+    --------
+    >>> scene = acoustics.load_scene("scenes/two_targets.yaml")
+    >>> scene.name, scene.pings.count
+    ('two-targets', 1)
+    >>> acoustics.load_scene("default").sonar.mode        # a built-in scene by name
+    'interferometric'
     """
-    path = Path(path)
+    path = resolve_scene_argument(path)
     try:
         data, marks = read_yaml(path)
     except ConfigError as exc:

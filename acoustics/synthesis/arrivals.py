@@ -24,6 +24,7 @@ accumulated in the same order whatever the number of threads (bit-identical resu
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba as nb
 import numpy as np
@@ -253,6 +254,47 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
     return out
 
 
+class ReceiverArgs(NamedTuple):
+    """The receiver-side arguments of the compiled kernels, in their positional order.
+
+    Attributes
+    ----------
+    center_m : ndarray, shape (N, 3)
+        Receiver element centres (m), sonar frame.
+    ex, ey : ndarray, shape (N, 2)
+        x–y components of each element's local axes.
+    half_kw, half_kh : ndarray, shape (N,)
+        k w / 2 and k h / 2 (rad) of each element.
+    directivity : ndarray, shape (S, N) complex128, or (1, 1)
+        Huygens receive directivities per scatterer and element (only with ``use_directivity``).
+    use_directivity : bool
+        Take ``directivity`` instead of the far-field sinc pattern.
+    inv_c : float
+        1 / c (s/m).
+    inv_lambda : float
+        f0 / c (1/m): the carrier phase in cycles per metre.
+    alpha_np_m : float
+        Absorption (Np/m; 0 when off).
+    cheap_exp : bool
+        Whether the receive leg's e^{−α(r2 − r1)} may use the short series (exact to 1e-15).
+    spreading, baffle : bool
+    """
+
+    center_m: np.ndarray
+    ex: np.ndarray
+    ey: np.ndarray
+    half_kw: np.ndarray
+    half_kh: np.ndarray
+    directivity: np.ndarray
+    use_directivity: bool
+    inv_c: float
+    inv_lambda: float
+    alpha_np_m: float
+    cheap_exp: bool
+    spreading: bool
+    baffle: bool
+
+
 @dataclass(frozen=True, eq=False)
 class EchoModel:
     """Everything about the sonar and water that a ping's echoes need, fixed for a run.
@@ -290,7 +332,7 @@ class EchoModel:
         """S = Σ w_e: on-axis pressure at 1 m of the ganged transmitter (unit drive per element)."""
         return float(self.transmitter.weight.sum())
 
-    def _rx_args(self, p):
+    def receiver_args(self, p) -> "ReceiverArgs":
         """Receiver-side arguments of the compiled kernels for scatterers ``p`` (S, 3)."""
         rx = self.receiver
         ex, ey = rx.local_axes
@@ -303,12 +345,14 @@ class EchoModel:
         alpha = _alpha_np_per_m(self)
         # |r2 − r1| <= |R_n − T|, so this bound decides if the cheap exponential is exact
         reach = float(np.max(np.linalg.norm(rx.center_m - self.transmitter.phase_center_m, axis=1)))
-        return (np.ascontiguousarray(rx.center_m), np.ascontiguousarray(ex[:, :2]),
-                np.ascontiguousarray(ey[:, :2]), 0.5 * k * rx.width_m, 0.5 * k * rx.height_m,
-                np.ascontiguousarray(d_in, np.complex128), self.fidelity == "huygens",
-                1.0 / self.medium.sound_speed_m_s,
-                self.center_frequency_hz / self.medium.sound_speed_m_s, alpha,
-                alpha * reach <= EXP_SMALL_LIMIT, self.spreading, self.baffle)
+        return ReceiverArgs(
+            center_m=np.ascontiguousarray(rx.center_m), ex=np.ascontiguousarray(ex[:, :2]),
+            ey=np.ascontiguousarray(ey[:, :2]), half_kw=0.5 * k * rx.width_m,
+            half_kh=0.5 * k * rx.height_m, directivity=np.ascontiguousarray(d_in, np.complex128),
+            use_directivity=self.fidelity == "huygens", inv_c=1.0 / self.medium.sound_speed_m_s,
+            inv_lambda=self.center_frequency_hz / self.medium.sound_speed_m_s, alpha_np_m=alpha,
+            cheap_exp=alpha * reach <= EXP_SMALL_LIMIT, spreading=self.spreading,
+            baffle=self.baffle)
 
 
 def _positions(positions) -> np.ndarray:
@@ -382,22 +426,22 @@ def _kernel_inputs(model, positions_m, strength, *, by_range=False, receive_posi
     prx = p if receive_positions_m is None else _positions(receive_positions_m)
     if prx.shape != p.shape:
         raise ValueError("receive_positions_m must have the shape of positions_m")
-    rx = model._rx_args(prx)
-    if receive_positions_m is not None and alpha and rx[10]:
+    rx = model.receiver_args(prx)
+    if receive_positions_m is not None and alpha and rx.cheap_exp:
         # |r2 − r1| <= ||P_rx − T| − r1| + |R_n − T|: is the cheap e^{−α(r2 − r1)} still exact?
         reach = float(np.max(np.linalg.norm(model.receiver.center_m - model.transmitter.phase_center_m, axis=1)))
         gap = float(np.max(np.abs(np.linalg.norm(prx - model.transmitter.phase_center_m, axis=1) - r1)))
         if alpha * (gap + reach) > EXP_SMALL_LIMIT:
-            rx = rx[:10] + (False,) + rx[11:]
+            rx = rx._replace(cheap_exp=False)
     cols = [prx[:, 0], prx[:, 1], prx[:, 2], f_s.real, f_s.imag, r1]
     if by_range:
         # a 16-bit key gets numpy's linear-time radix sort; ties keep the input order
         key = (r1 * (32767.0 / max(float(r1.max()), 1e-12))).astype(np.int16)
         order = np.argsort(key, kind="stable")
         cols = [c[order] for c in cols]  # 1-D takes: far cheaper than a 2-D fancy index
-        if rx[6]:  # huygens directivities follow their scatterers
-            rx = rx[:5] + (rx[5][order],) + rx[6:]
-    return tuple(np.ascontiguousarray(c) for c in cols) + rx
+        if rx.use_directivity:  # huygens directivities follow their scatterers
+            rx = rx._replace(directivity=rx.directivity[order])
+    return tuple(np.ascontiguousarray(c) for c in cols) + tuple(rx)
 
 
 def arrivals(model: EchoModel, positions_m, strength, *, receive_positions_m=None):
