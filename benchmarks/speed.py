@@ -80,11 +80,11 @@ def synthesis():
             + "\n\n**Throughput at 10⁵ scatterers x 32 elements** (requirement: >= 25 million "
               "pairs/s on 2 cores)\n\n"
             + table(["threads", "setting", "time (ms)", "million pairs / s"], rows2)
-            + "\n\nThe compiled kernels (numba, `acoustics/echoes.py`) split receiver channels "
+            + "\n\nThe compiled kernels (numba, `acoustics/synthesis/arrivals.py`) split receiver channels "
               "across threads, so every channel sums its arrivals in the same order and the "
               "result is bit-identical for any thread count (a test checks it). The per-pair "
               "maths is vectorised over blocks of 256 scatterers; the carrier phase is reduced "
-              "in cycles before any trigonometry (`acoustics/kernels.py`).")
+              "in cycles before any trigonometry (`acoustics/synthesis/kernels.py`).")
 
 
 @section
@@ -219,7 +219,7 @@ def rays():
         rows.append([label, f"{hit_frac:.2f}", f"{n / t_ids / 1e6:.2f}", f"{n / t_out / 1e6:.2f}",
                      f"{n / t1 / 1e6:.2f}", f"{t_out / t1:.2f}", f"{t_ids / t1:.2f}",
                      f"{n / t2 / 1e6:.2f}", f"{t_out / t2:.2f}", f"{t_out / t_raw2:.2f}"])
-    return ("## Ray casting (`acoustics.raycast.RayCaster`)\n\n"
+    return ("## Ray casting (`acoustics.paths.raycast.RayCaster`)\n\n"
             f"10⁶ rays per batch, float64 in, best of 9 turns taken in alternation; {os.cpu_count()} "
             "cores. *Raw embreex* is one `EmbreeScene.run` on ready float32 arrays, single-threaded: "
             "`ids` returns only the triangle index, `output` also the float32 distance and normal "

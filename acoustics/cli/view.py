@@ -16,10 +16,11 @@ def add_parser(sub):
 
 
 def command(args) -> int:
-    import importlib.util
-    if importlib.util.find_spec("pyvista") is None:
+    try:
+        import pyvista  # noqa: F401  (an optional dependency: the `view` extra)
+    except ImportError:
         raise UsageError("abacus view needs pyvista, an optional dependency: "
-                         "python -m pip install 'abacus[view]'")
+                         "python -m pip install 'abacus[view]'") from None
     from acoustics.view import render_scene
     scene = load(args.scene)
     out = render_scene(scene, args.output, ping=args.ping, interactive=args.interactive)

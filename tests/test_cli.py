@@ -1,0 +1,64 @@
+"""The command line as a new user meets it: version, built-in scenes, optional extras."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import acoustics
+
+from .conftest import ROOT
+
+
+def abacus(*args, cwd, pre: str = "pass"):
+    code = f"{pre}; import sys; from acoustics.cli import main; sys.exit(main({list(args)!r}))"
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=cwd)
+
+
+def test_version_is_the_installed_distribution(tmp_path):
+    r = abacus("--version", cwd=tmp_path)
+    assert r.returncode == 0 and r.stdout.strip() == f"abacus {acoustics.__version__}"
+    assert acoustics.__version__ != "0+unknown"
+
+
+def test_builtin_scene_by_name_from_an_empty_folder(tmp_path):
+    r = abacus("scene", "check", "two_targets", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "ok" in r.stdout and "two-targets" in r.stdout
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unknown_scene_lists_the_builtin_ones(tmp_path):
+    r = abacus("scene", "check", "no_such_scene", cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "built-in scenes:" in r.stderr and "default" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_beams_json_from_an_empty_folder(tmp_path):
+    r = abacus("beams", "--json", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    table = json.loads(r.stdout)
+    # thesis Table 3.2: the ABACUS transmitter, 10.28° x 0.86° (docs/arrays.md)
+    tx = table["transmitter"]["abacus"]["normal"]
+    assert abs(tx["azimuth_3db_deg"] - 10.28) < 0.05 and abs(tx["elevation_3db_deg"] - 0.86) < 0.01
+
+
+def test_view_without_pyvista_says_how_to_get_it(tmp_path):
+    r = abacus("view", "two_targets", "-o", "v.png", cwd=tmp_path,
+               pre="import sys; sys.modules['pyvista'] = None")
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "abacus[view]" in r.stderr
+    assert not (tmp_path / "v.png").exists()
+
+
+def test_python_m_acoustics_is_the_command_line(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "acoustics", "--version"], capture_output=True,
+                       text=True, cwd=tmp_path)
+    assert r.returncode == 0 and r.stdout.startswith("abacus ")
+
+
+def test_scenes_folder_is_the_builtin_scenes():
+    from acoustics.scene.builtin import builtin_scenes, scenes_dir
+    assert scenes_dir() == (ROOT / "scenes").resolve()
+    assert {p.stem for p in (ROOT / "scenes").glob("*.yaml")} == set(builtin_scenes())
