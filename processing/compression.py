@@ -17,13 +17,16 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft as sfft
-from scipy.signal import get_window
 
 __all__ = ["WINDOWS", "window", "RangeFilter", "compressed_spectra", "to_time", "compress"]
 
 #: window names accepted in settings -> scipy.signal.get_window spec (a registry)
 WINDOWS = {"rectangular": "boxcar", "hamming": "hamming", "hann": "hann",
            "taylor": ("taylor", 4, 35), "blackman": "blackman"}
+
+
+_NUMPY_WINDOWS = {"rectangular": np.ones, "hamming": np.hamming, "hann": np.hanning,
+                  "blackman": np.blackman}
 
 
 def window(name: str, n: int) -> np.ndarray:
@@ -34,7 +37,13 @@ def window(name: str, n: int) -> np.ndarray:
         return np.zeros(0)
     if n == 1:
         return np.ones(1)
-    w = get_window(WINDOWS[name], n, fftbins=False)
+    if name in _NUMPY_WINDOWS:  # the same symmetric formulas, without importing scipy.signal
+        w = _NUMPY_WINDOWS[name](n)
+    else:
+        from scipy.signal import get_window
+        w = get_window(WINDOWS[name], n, fftbins=False)
+    if not w.max() > 0:  # a 2-point Hann is all zeros: too short to taper, leave it untapered
+        return np.ones(n)
     return w / w.max()
 
 
@@ -101,7 +110,8 @@ def compressed_spectra(samples, rfilter: RangeFilter):
     -------
     ndarray, shape (..., nfft), complex128
     """
-    return sfft.fft(np.asarray(samples), rfilter.nfft, axis=-1) * rfilter.spectrum
+    # double precision whatever the storage (float32 pairs on disk, complex64 in a record)
+    return sfft.fft(np.asarray(samples, np.complex128), rfilter.nfft, axis=-1) * rfilter.spectrum
 
 
 def to_time(spectra, rfilter: RangeFilter, *, upsample: int = 1, keep=None):

@@ -31,7 +31,8 @@ from .scoring import match
 from .settings import DetectSettings
 from .thresholds import cell_pfa, cfar_threshold, rayleigh_threshold
 
-__all__ = ["DetectionWarning", "Detections", "detect_all", "score_all", "n_tested_cells"]
+__all__ = ["DetectionWarning", "Detections", "detect_all", "score_all", "n_tested_cells", "noise_cells",
+           "fit_noise_cells", "noise_fit"]
 
 
 class DetectionWarning(UserWarning):
@@ -71,6 +72,54 @@ def n_tested_cells(range_m, beam_angle_rad, volume: CountingVolume, upsample: in
     return max(1, int(round(rows / max(upsample, 1))) * max(beams, 1))
 
 
+def noise_cells(mags, st: DetectSettings, range_m, beam_angle_rad):
+    """The image cells the detection settings take the noise from.
+
+    Parameters
+    ----------
+    mags : ndarray, shape (n_pings, n_range, n_beams)
+        |I| (ADC counts) of the image group detected on.
+    st : DetectSettings
+    range_m : ndarray, shape (n_range,)
+    beam_angle_rad : ndarray, shape (n_beams,)
+
+    Returns
+    -------
+    ndarray, shape (n_pings, n_rows, n_cols)
+        The cells of the noise region (``noise.source: region``) or all of them (``image``).
+    """
+    ns = st.noise
+    if ns.source == "region":
+        rows = (range_m >= ns.range_m[0]) & (range_m <= ns.range_m[1])
+        cols = np.ones(beam_angle_rad.size, bool)
+        if ns.azimuth is not None:
+            cols = (beam_angle_rad >= ns.azimuth[0]) & (beam_angle_rad <= ns.azimuth[1])
+        return mags[..., rows, :][..., cols]
+    return mags
+
+
+def fit_noise_cells(cells, st: DetectSettings, n_beams: int, upsample: int):
+    """Rayleigh fit of noise cells; the KS test sees every U-th range sample and a few beams
+    (cells closer than a resolution cell are correlated).
+
+    Parameters
+    ----------
+    cells : ndarray, shape (n_pings, n_rows, n_cols)
+    st : DetectSettings
+    n_beams : int
+        Beams of the image (sets the KS decimation across beams).
+    upsample : int
+        Range interpolation factor.
+
+    Returns
+    -------
+    RayleighFit
+    """
+    step_b = 1 if n_beams < 8 else max(1, n_beams // 8)
+    dec = (Ellipsis, slice(None, None, max(upsample, 1)), slice(None, None, step_b))
+    return rayleigh_fit(cells, estimator=st.noise.estimator, decimate=dec)
+
+
 def noise_fit(mags, st: DetectSettings, range_m, beam_angle_rad, upsample, noise_mags=None):
     """Rayleigh fit of the image cells the detection settings take the noise from.
 
@@ -90,24 +139,13 @@ def noise_fit(mags, st: DetectSettings, range_m, beam_angle_rad, upsample, noise
     -------
     RayleighFit
     """
-    ns = st.noise
-    if ns.source == "noise_file":
-        cells = noise_mags
-    elif ns.source == "region":
-        rows = (range_m >= ns.range_m[0]) & (range_m <= ns.range_m[1])
-        cols = np.ones(beam_angle_rad.size, bool)
-        if ns.azimuth is not None:
-            cols = (beam_angle_rad >= ns.azimuth[0]) & (beam_angle_rad <= ns.azimuth[1])
-        cells = mags[..., rows, :][..., cols]
-    else:
-        cells = mags
-    step_b = 1 if beam_angle_rad.size < 8 else max(1, beam_angle_rad.size // 8)
-    dec = (Ellipsis, slice(None, None, max(upsample, 1)), slice(None, None, step_b))
-    return rayleigh_fit(cells, estimator=ns.estimator, decimate=dec)
+    cells = noise_mags if st.noise.source == "noise_file" else noise_cells(mags, st, range_m,
+                                                                           beam_angle_rad)
+    return fit_noise_cells(cells, st, np.asarray(beam_angle_rad).size, upsample)
 
 
 def detect_all(images: Images, record, settings: DetectSettings, volume: CountingVolume, *,
-               upsample: int, pose=None, noise_magnitudes=None) -> Detections:
+               upsample: int, pose=None, noise_magnitudes=None, noise=None) -> Detections:
     """Detections of every ping.
 
     Parameters
@@ -124,6 +162,9 @@ def detect_all(images: Images, record, settings: DetectSettings, volume: Countin
         Sonar pose for world coordinates; identity if None.
     noise_magnitudes : ndarray, optional
         |I| of a noise-only dataset (settings.noise.source == "noise_file").
+    noise : RayleighFit, optional
+        A pooled noise fit computed beforehand (e.g. over every chunk of a long run); used
+        instead of fitting these images' own cells.
 
     Raises
     ------
@@ -146,14 +187,16 @@ def detect_all(images: Images, record, settings: DetectSettings, volume: Countin
     notes = []
     if st.method in ("rayleigh", "cfar"):
         pfa = cell_pfa(st.pfa_image, n_cells, convention=st.convention)
-    if st.needs_noise or st.noise.source != "image":
+    if noise is not None:
+        fit = noise
+    elif st.needs_noise or st.noise.source != "image":
         try:
             if not st.noise.per_ping:
                 fit = noise_fit(mags, st, r, th, upsample, noise_magnitudes)
         except NoiseEstimateError:
             if st.needs_noise:
                 raise
-    if fit is not None and not fit.rayleigh_like:
+    if noise is None and fit is not None and not fit.rayleigh_like:
         msg = (f"the noise cells are not Rayleigh-like ({fit.describe()}): the derived threshold "
                f"may not hold its false-alarm rate")
         warnings.warn(msg, DetectionWarning, stacklevel=2)
@@ -211,10 +254,9 @@ def _describe(images, record, img, mags, ping, row, beam, volume, pose):
         rng[k], az[k], amp[k] = refine_peaks(mags[p], row[k], beam[k], r, th)
     out = {"ping": ping, "ping_index": np.asarray(record.ping_index)[ping] if n else np.zeros(0, int),
            "row": row, "beam": beam, "range_m": rng, "azimuth_rad": az, "amplitude": amp}
-    psi = images.psi_rad
     centers = images.phase_centers_m or {}
-    if psi is not None and "A" in centers and "B" in centers:
-        ps = psi[ping, row, beam].astype(float)
+    if images.interferometric:
+        ps = images.psi_at(ping, row, beam) if n else np.zeros(0)
         el, clipped = elevation_from_phase(ps, az, images.baseline_m, record.wavelength_m)
         pos = locate(2 * rng / record.sound_speed_m_s, az, ps,
                      transmitter_m=record.transmitter_center_m, center_a_m=centers["A"],
@@ -232,7 +274,7 @@ def _describe(images, record, img, mags, ping, row, beam, volume, pose):
                 "x_m": pos[:, 0], "y_m": pos[:, 1], "z_m": pos[:, 2],
                 "world_x_m": world[:, 0], "world_y_m": world[:, 1], "world_z_m": world[:, 2],
                 "in_span": volume.in_span(rng, az),
-                "in_volume": volume.contains(pos) & (psi is not None)})
+                "in_volume": volume.contains(pos) & images.interferometric})
     return out
 
 

@@ -9,7 +9,8 @@ from the channel noise (:attr:`Images.noise_power_gain`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -27,9 +28,13 @@ __all__ = ["Images", "form_images", "range_axis"]
 class Images:
     """Images of every ping.
 
+    The interferometric phase and the elevation are functions of the two images; they are
+    derived on first use (:attr:`psi_rad`, :attr:`elevation_rad`) or at chosen cells
+    (:meth:`psi_at`), never stored twice.
+
     Attributes
     ----------
-    image : ndarray, shape (n_pings, n_groups, n_range, n_beams), complex128
+    image : ndarray, shape (n_pings, n_groups, n_range, n_beams), complex
         I(r, θ) per image group, calibrated in ADC counts (echo amplitude at one element).
     groups : tuple of str
         Image group names ("A", "B"; "A" in normal mode; "AB" in combined mode).
@@ -38,22 +43,22 @@ class Images:
     time_s : ndarray, shape (n_range,)
         Two-way delay of each row (s) since the start of transmission.
     beam_angle_rad : ndarray, shape (n_beams,)
-    psi_rad, elevation_rad : ndarray, shape (n_pings, n_range, n_beams) or None
-        Interferometric phase and elevation (interferometric mode only).
-    elevation_clipped : ndarray of bool or None
-    baseline_m : ndarray, shape (3,) or None
-        Phase centre of B minus that of A (m).
+    noise_power_gain : float
+        Image noise power / channel noise power for white channel noise over the receiver band
+        (per quadrature component).
     settings : ImageSettings
         The settings the images were formed with.
     phase_centers_m : dict of str -> ndarray, shape (3,)
         Phase centre (m, sonar frame) of each image group's subarray.
     range_resolution_m, azimuth_resolution_rad : float
         Measured 3 dB widths of a point target's image cell.
-    noise_power_gain : float
-        Image noise power / channel noise power for white channel noise over the receiver band
-        (per quadrature component).
-    signal_gain : float
-        Image peak / echo amplitude at one element for a target on a beam and sample: 1.
+    wavelength_m : float
+        λ at the carrier (m), for the elevation.
+    interferometric : bool
+        Whether the images are the A/B pair of interferometric mode.
+
+    Image peaks are calibrated: a target on a beam and sample peaks at its echo amplitude at one
+    element (signal gain 1).
     """
 
     image: np.ndarray
@@ -61,15 +66,13 @@ class Images:
     range_m: np.ndarray
     time_s: np.ndarray
     beam_angle_rad: np.ndarray
-    psi_rad: np.ndarray | None
-    elevation_rad: np.ndarray | None
-    elevation_clipped: np.ndarray | None
-    baseline_m: np.ndarray | None
     noise_power_gain: float
     settings: ImageSettings
     phase_centers_m: dict = field(default_factory=dict)
     range_resolution_m: float = 0.0
     azimuth_resolution_rad: float = 0.0
+    wavelength_m: float = float("nan")
+    interferometric: bool = False
 
     @property
     def interpolation(self) -> int:
@@ -89,6 +92,50 @@ class Images:
                              f"(images: {', '.join(self.groups)})")
         return self.groups.index(group)
 
+    @property
+    def baseline_m(self) -> np.ndarray | None:
+        """Phase centre of B minus that of A (m), shape (3,); None unless interferometric."""
+        if not self.interferometric:
+            return None
+        return np.asarray(self.phase_centers_m["B"], float) - np.asarray(self.phase_centers_m["A"], float)
+
+    def psi_at(self, ping, row, beam) -> np.ndarray:
+        """ψ_AB = arg(I_A I_B*) (rad) at chosen cells, each index array of shape (n,)."""
+        if not self.interferometric:
+            raise ValueError("no interferometric phase: the images are not an A/B pair")
+        ia, ib = self.groups.index("A"), self.groups.index("B")
+        return np.angle(self.image[ping, ia, row, beam] * np.conj(self.image[ping, ib, row, beam]))
+
+    @cached_property
+    def psi_rad(self) -> np.ndarray | None:
+        """ψ_AB of every cell (rad), shape (n_pings, n_range, n_beams); None unless
+        interferometric."""
+        if not self.interferometric:
+            return None
+        ia, ib = self.groups.index("A"), self.groups.index("B")
+        return interferogram(self.image[:, ia], self.image[:, ib])[1]
+
+    @cached_property
+    def _elevation(self):
+        if not self.interferometric:
+            return None, None
+        return elevation_from_phase(self.psi_rad, self.beam_angle_rad, self.baseline_m,
+                                    self.wavelength_m)
+
+    @property
+    def elevation_rad(self) -> np.ndarray | None:
+        """Elevation φ (rad) of every cell from ψ_AB, shape (n_pings, n_range, n_beams)."""
+        return self._elevation[0]
+
+    @property
+    def elevation_clipped(self) -> np.ndarray | None:
+        """Cells whose arcsin argument exceeded 1 (elevation clipped), bool, same shape."""
+        return self._elevation[1]
+
+    def pings(self, index) -> "Images":
+        """The images of some pings (``index``: a slice or an index array)."""
+        return replace(self, image=self.image[index])
+
 
 def _width_3db(profile, step):
     p = profile / profile.max()
@@ -102,10 +149,24 @@ def _width_3db(profile, step):
     return (hi - lo + 1) * step
 
 
+_RESOLUTION: dict = {}
+
+
 def resolution(rfilter: RangeFilter, geometry: SubarrayGeometry, sound_speed_m_s: float,
                wavelength_m: float):
     """3 dB widths of the point response: range (m, from the compressed pulse) and azimuth (rad,
-    from the weighted array factor at broadside). Used as the resolution cell for scoring."""
+    from the weighted array factor at broadside). Used as the resolution cell for scoring.
+    Remembered per filter and geometry (a long record is imaged a chunk of pings at a time)."""
+    key = (np.asarray(rfilter.response).tobytes(), rfilter.rate_hz, geometry.positions_m.tobytes(),
+           geometry.weights.tobytes(), float(sound_speed_m_s), float(wavelength_m))
+    if key not in _RESOLUTION:
+        if len(_RESOLUTION) > 32:
+            _RESOLUTION.clear()
+        _RESOLUTION[key] = _resolution(rfilter, geometry, sound_speed_m_s, wavelength_m)
+    return _RESOLUTION[key]
+
+
+def _resolution(rfilter, geometry, sound_speed_m_s, wavelength_m):
     spec = rfilter.response
     n, up = rfilter.nfft, 32
     big = np.zeros(n * up)
@@ -191,15 +252,10 @@ def form_images(record: SonarRecord, settings: ImageSettings | None = None, *,
                     img = beamform_das(y, geo, angles, lam)
             out[p, gi] = img[:, sel]
     angles = angles[sel]
-    psi = elev = clipped = baseline = None
     names = tuple(groups)
-    centers = {g: geoms[g].center_m for g in names}
-    if record.mode == "interferometric" and {"A", "B"} <= set(names):
-        ia, ib = names.index("A"), names.index("B")
-        _, psi = interferogram(out[:, ia], out[:, ib])
-        baseline = centers["B"] - centers["A"]
-        elev, clipped = elevation_from_phase(psi, angles, baseline, lam)
     gain = rf.noise_power_gain(noise_band_hz) * first.noise_power_gain()
     dr, dth = resolution(rf, first, record.sound_speed_m_s, lam)
-    return Images(out, names, r[rows], t[rows], angles, psi, elev, clipped, baseline, gain, st,
-                  centers, dr, dth)
+    return Images(out, names, r[rows], t[rows], angles, gain, st,
+                  phase_centers_m={g: geoms[g].center_m for g in names}, range_resolution_m=dr,
+                  azimuth_resolution_rad=dth, wavelength_m=lam,
+                  interferometric=record.mode == "interferometric" and {"A", "B"} <= set(names))

@@ -65,16 +65,37 @@ def _db(x, ref):
     return 20 * np.log10(np.maximum(np.asarray(x, float), ref * 1e-6) / ref)
 
 
+def _axes_pixels(ax) -> int:
+    """The larger side of an axes on screen (pixels at the figure's dpi), at least 200."""
+    fig = ax.figure
+    w, h = fig.get_size_inches() * fig.dpi
+    pos = ax.get_position()
+    return max(200, int(max(pos.width * w, pos.height * h)))
+
+
 def plot_fan(ax, magnitude, range_m, beam_angle_rad, *, dynamic_range_db=40.0, title="",
              detections=None):
-    """Fan-beam image in dB re its maximum, with a colour bar; optional detections (x, z)."""
-    x, z, img, inside = fan_beam(magnitude, range_m, beam_angle_rad, with_mask=True)
+    """Fan-beam image in dB re its maximum, with a colour bar; optional detections (x, z).
+
+    The fan is resampled once onto a regular grid as fine as the axes' pixels (never finer than
+    a quarter of a range sample) and drawn as one raster (``imshow``): a figure costs what it
+    shows, not one polygon per range sample.
+    """
+    r = np.asarray(range_m, float)
+    th = np.asarray(beam_angle_rad, float)
+    x_max = r[-1] * np.sin(np.abs(th).max())
+    z0 = r[0] * np.cos(np.abs(th).max())
+    extent = max(2 * x_max, r[-1] - z0)
+    dr = float(np.median(np.diff(r))) if r.size > 1 else 0.01
+    pixel = max(extent / _axes_pixels(ax), dr / 4, 1e-4)
+    x, z, img, inside = fan_beam(magnitude, r, th, pixel_m=pixel, with_mask=True)
     ref = max(float(np.max(magnitude)), 1e-300)
     db = np.ma.masked_where(~inside, _db(img, ref))
-    m = ax.pcolormesh(x, z, db, shading="auto", cmap="viridis", vmin=-dynamic_range_db, vmax=0,
-                      rasterized=True)
+    half = pixel / 2
+    m = ax.imshow(db, origin="lower", extent=(x[0] - half, x[-1] + half, z[0] - half, z[-1] + half),
+                  cmap="viridis", vmin=-dynamic_range_db, vmax=0, interpolation="nearest",
+                  aspect="equal")
     ax.set_facecolor("white")
-    ax.set_aspect("equal")
     ax.set_xlabel("across-track x (m)")
     ax.set_ylabel("along boresight z (m)")
     ax.set_title(title)
@@ -85,6 +106,17 @@ def plot_fan(ax, magnitude, range_m, beam_angle_rad, *, dynamic_range_db=40.0, t
                 label="detections")
         ax.legend(loc="upper right", fontsize=8)
     return m
+
+
+def _raster(ax, values, range_m, beam_angle_rad, **kw):
+    """An (n_range, n_beams) array over (azimuth in degrees, range) as one raster; the beams,
+    uniform in sin θ, are drawn at their angles' extent (within 0.3 % of uniform in θ at ±7°)."""
+    deg = np.degrees(np.asarray(beam_angle_rad, float))
+    r = np.asarray(range_m, float)
+    hb = (deg[-1] - deg[0]) / max(deg.size - 1, 1) / 2
+    hr = (r[-1] - r[0]) / max(r.size - 1, 1) / 2
+    return ax.imshow(values, origin="lower", aspect="auto", interpolation="nearest",
+                     extent=(deg[0] - hb, deg[-1] + hb, r[0] - hr, r[-1] + hr), **kw)
 
 
 def plot_range_profiles(ax, image, range_m, beam_angle_rad, *, n_profiles=3):
@@ -106,8 +138,7 @@ def plot_phase_map(ax, psi, magnitude, range_m, beam_angle_rad, *, floor_db=-30.
     """Wrapped ψ_AB over (azimuth, range); cells below ``floor_db`` re max are greyed out."""
     ref = max(float(np.max(magnitude)), 1e-300)
     shown = np.ma.masked_where(_db(magnitude, ref) < floor_db, psi)
-    m = ax.pcolormesh(np.degrees(beam_angle_rad), range_m, shown, shading="auto", cmap="twilight",
-                      vmin=-np.pi, vmax=np.pi, rasterized=True)
+    m = _raster(ax, shown, range_m, beam_angle_rad, cmap="twilight", vmin=-np.pi, vmax=np.pi)
     ax.set_facecolor("0.85")
     ax.set_xlabel("azimuth θ (deg)")
     ax.set_ylabel("range r (m)")
@@ -145,8 +176,7 @@ def image_figures(images: dict, outdir: Path, *, ping: int = 0) -> list[Path]:
                              squeeze=False)
     for ax, g, im in zip(axes[0], groups, img):
         mag = np.abs(im)
-        m = ax.pcolormesh(np.degrees(th), r, _db(mag, max(mag.max(), 1e-300)), shading="auto",
-                          vmin=-40, vmax=0, rasterized=True)
+        m = _raster(ax, _db(mag, max(mag.max(), 1e-300)), r, th, vmin=-40, vmax=0)
         ax.set_xlabel("azimuth θ (deg)")
         ax.set_ylabel("range r (m)")
         ax.set_title(f"I(r, θ), subarray {g}")
@@ -176,11 +206,12 @@ def count_figures(tree, outdir: Path, *, pings=(0,), max_pings: int = 5,
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .products import counts_of, detections_of, images_of
+    from .products import counts_of, detections_of, figure_images
 
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
-    im = images_of(tree)
+    pings = list(pings)[:max_pings]
+    im = figure_images(tree, pings)
     det = {k: v.values for k, v in detections_of(tree).data_vars.items()}
     counts = counts_of(tree)
     cnt = {k: v.values for k, v in counts.variables.items()}
@@ -191,12 +222,12 @@ def count_figures(tree, outdir: Path, *, pings=(0,), max_pings: int = 5,
         gt = tree["Simulation/Ground_truth"].ds
         truth = (gt["target_ping_index"].values, np.stack([gt[f"target_{a}"].values for a in "xyz"], -1))
     g = 0
-    for p in list(pings)[:max_pings]:
+    for i, p in enumerate(pings):
         k = det["ping"] == p
         fig, axes = plt.subplots(1, 3, figsize=(16, 6), constrained_layout=True)
         xs = det["range_m"][k] * np.sin(det["azimuth_rad"][k])
         zs = det["range_m"][k] * np.cos(det["azimuth_rad"][k])
-        plot_fan(axes[0], np.abs(im.image[p, g]), r, th,
+        plot_fan(axes[0], np.abs(im.image[i, g]), r, th,
                  title=f"ping {int(cnt['ping_index'][p])}: {int(k.sum())} detections",
                  detections=(xs, zs))
         inside = det["in_volume"][k]

@@ -17,11 +17,12 @@ import yaml
 
 from .atomic import staged
 from .config import ConfigError, dump_yaml, validate_file
-from .dataset import ELEMENT_GROUP, DatasetError, read_record, split_complex
+from .dataset import ELEMENT_GROUP, DatasetError, complex_of, read_record, split_complex
+from .chain import record_pings
 from .imaging import Images, form_images
 from .settings import ImageSettings, ProcessingSettings, load_settings
 
-__all__ = ["PROCESSING_GROUP", "resolve_settings", "image", "images_of", "detect", "count",
+__all__ = ["PROCESSING_GROUP", "resolve_settings", "image", "images_of", "figure_images", "detect", "count",
            "volume_of", "detections_of", "counts_of", "write_csv", "count_summary", "format_counts"]
 
 PROCESSING_GROUP = "Processing"
@@ -63,43 +64,73 @@ def _noise_band(tree) -> float | None:
     return None
 
 
-def images_dataset(im: Images, ping_time, settings: ProcessingSettings) -> xr.Dataset:
-    """/Processing variables of an :class:`Images`."""
+#: what ``image``/``count`` may store of the images: nothing, the images at the data's own
+#: range sampling (every U-th row of a U-times interpolated image), or every interpolated row
+IMAGE_STORAGE = ("none", "native", "full")
+
+
+def _processing_attrs(im: Images, settings: ProcessingSettings) -> dict:
+    """What /Processing records of how the images were made (with or without the images)."""
+    return {"settings_yaml": dump_yaml(settings.model_dump(mode="json", by_alias=True)),
+            "image_noise_power_gain": im.noise_power_gain, "image_signal_gain": 1.0,
+            "range_resolution_m": im.range_resolution_m,
+            "azimuth_resolution_rad": im.azimuth_resolution_rad,
+            "interpolation": int(settings.image.interpolation),
+            "image_range_m": [float(im.range_m[0]), float(im.range_m[-1])],
+            "image_groups": ",".join(im.groups), "interferometric": int(im.interferometric),
+            "wavelength_m": float(im.wavelength_m),
+            "phase_centers_json": json.dumps({g: list(map(float, c)) for g, c in im.phase_centers_m.items()})}
+
+
+def images_dataset(im: Images, ping_time, settings: ProcessingSettings, *, storage: str = "full") -> xr.Dataset:
+    """/Processing of an :class:`Images`: the attributes, and the images as ``storage`` says.
+
+    Parameters
+    ----------
+    im : Images
+    ping_time : ndarray, shape (n_pings,)
+    settings : ProcessingSettings
+    storage : {"none", "native", "full"}
+        ``native`` keeps every U-th row (U the interpolation factor): the images at the data's
+        own range sampling, from which the interpolated rows follow by band-limited
+        interpolation. The interferometric phase and the elevation are functions of the two
+        images and are never stored (:class:`~processing.imaging.Images` derives them).
+    """
+    if storage not in IMAGE_STORAGE:
+        raise ValueError(f"image storage must be one of {IMAGE_STORAGE}, got {storage!r}")
+    attrs = _processing_attrs(im, settings)
+    if storage == "none":
+        return xr.Dataset(attrs=attrs)
+    rows = slice(None, None, im.interpolation if storage == "native" else 1)
     dims = ("ping_time", "image_group", "image_range", "beam")
-    ds = xr.Dataset(
-        {**split_complex("image", im.image, dims, {"units": "ADC counts",
-                                                   "long_name": "calibrated complex image I(r, θ): echo amplitude at one element"})},
+    attrs["image_storage"] = storage
+    return xr.Dataset(
+        {**split_complex("image", im.image[:, :, rows], dims, {"units": "ADC counts",
+                                                               "long_name": "calibrated complex image I(r, θ): echo amplitude at one element"})},
         coords={"ping_time": ping_time, "image_group": list(im.groups),
-                "image_range": ("image_range", im.range_m, {"units": "m", "long_name": "c t / 2"}),
-                "image_time": ("image_range", im.time_s, {"units": "s", "long_name": "two-way delay"}),
+                "image_range": ("image_range", im.range_m[rows], {"units": "m", "long_name": "c t / 2"}),
+                "image_time": ("image_range", im.time_s[rows], {"units": "s", "long_name": "two-way delay"}),
                 "beam": np.arange(im.beam_angle_rad.size),
                 "beam_angle": ("beam", im.beam_angle_rad, {"units": "rad", "long_name": "azimuth θ of the beam axis"})},
-        attrs={"settings_yaml": dump_yaml(settings.model_dump(mode="json", by_alias=True)),
-               "image_noise_power_gain": im.noise_power_gain, "image_signal_gain": 1.0,
-               "range_resolution_m": im.range_resolution_m,
-               "azimuth_resolution_rad": im.azimuth_resolution_rad,
-               "interpolation": int(settings.image.interpolation),
-               "phase_centers_json": json.dumps({g: list(map(float, c)) for g, c in im.phase_centers_m.items()})})
-    if im.psi_rad is not None:
-        d3 = ("ping_time", "image_range", "beam")
-        ds["interferometric_phase"] = xr.DataArray(im.psi_rad.astype(np.float32), dims=d3,
-                                                   attrs={"units": "rad", "long_name": "ψ_AB = arg(I_A I_B*)"})
-        ds["elevation"] = xr.DataArray(im.elevation_rad.astype(np.float32), dims=d3,
-                                       attrs={"units": "rad", "long_name": "elevation φ from ψ_AB"})
-        ds["elevation_clipped"] = xr.DataArray(im.elevation_clipped.astype(np.int8), dims=d3,
-                                               attrs={"long_name": "1 where |arcsin argument| > 1 (clipped)"})
-        ds["baseline"] = xr.DataArray(im.baseline_m, dims="xyz", attrs={"units": "m", "long_name": "phase centre of B minus A"})
-    return ds
+        attrs=attrs)
 
 
-def image(tree: xr.DataTree, settings=None) -> xr.DataTree:
-    """Images, interferometric phase and elevation of every ping (thesis chapter 4).
+def _record(tree):
+    return read_record(tree, source=str(tree.attrs.get("title", "dataset")))
+
+
+def image(tree: xr.DataTree, settings=None, *, storage: str = "full") -> xr.DataTree:
+    """Images of every ping (thesis chapter 4), stored in /Processing.
 
     Parameters
     ----------
     tree : xarray.DataTree
         A dataset following the data contract (simulated or recorded).
     settings : ProcessingSettings, ImageSettings, dict or path, optional
+    storage : {"full", "native", "none"}
+        Every interpolated row (default), every U-th row (the data's own range sampling: U
+        times smaller), or only the attributes. The interferometric phase and elevation are
+        derived from the two images (:func:`images_of`).
 
     Returns
     -------
@@ -119,55 +150,82 @@ def image(tree: xr.DataTree, settings=None) -> xr.DataTree:
     (1, 2, 2276, 32)
     """
     st = resolve_settings(tree, settings)
-    rec = read_record(tree, source=str(tree.attrs.get("title", "dataset")))
+    rec = _record(tree)
     try:
         im = form_images(rec, st.image, noise_band_hz=_noise_band(tree))
     except ValueError as exc:
         raise DatasetError(str(exc)) from None
     out = tree.copy()
     ping_time = tree[ELEMENT_GROUP].ds["ping_time"].values
-    out[PROCESSING_GROUP] = xr.DataTree(images_dataset(im, ping_time, st))
+    out[PROCESSING_GROUP] = xr.DataTree(images_dataset(im, ping_time, st, storage=storage))
     return out
 
 
 def images_of(tree: xr.DataTree) -> Images:
-    """The images of /Processing (the same :class:`~processing.imaging.Images` that
-    :func:`processing.imaging.form_images` returns).
+    """The images stored in /Processing (the same :class:`~processing.imaging.Images` that
+    :func:`processing.imaging.form_images` returns; at the data's own range sampling when they
+    were stored ``native``).
 
     Raises
     ------
     DatasetError
-        No /Processing group (run :func:`image` first).
+        No images in the dataset (run :func:`image`, or ``abacus run --images native``).
     """
     if PROCESSING_GROUP not in tree.children:
         raise DatasetError("the dataset has no /Processing group: run processing.image first")
     ds = tree[PROCESSING_GROUP].ds
+    if "image_r" not in ds:
+        raise DatasetError("the dataset stores no images (they were not kept): run "
+                           "processing.image, or `abacus run --images native`")
     settings = ImageSettings()
     if "settings_yaml" in ds.attrs:
         section = (yaml.safe_load(ds.attrs["settings_yaml"]) or {}).get("image", {})
         settings = validate_file(ImageSettings, section, file="/Processing settings_yaml (image)")
-    opt = {k: ds[k].values if k in ds else None
-           for k in ("interferometric_phase", "elevation", "elevation_clipped", "baseline")}
+    if ds.attrs.get("image_storage") == "native":
+        settings = settings.model_copy(update={"interpolation": 1})
+    groups = tuple(str(g) for g in ds["image_group"].values)
+    centers = {k: np.asarray(v) for k, v in json.loads(ds.attrs.get("phase_centers_json", "{}")).items()}
     return Images(
-        image=ds["image_r"].values.astype(float) + 1j * ds["image_i"].values.astype(float),
-        groups=tuple(str(g) for g in ds["image_group"].values),
+        image=complex_of(ds, "image"), groups=groups,
         range_m=ds["image_range"].values, time_s=ds["image_time"].values,
         beam_angle_rad=ds["beam_angle"].values,
-        psi_rad=opt["interferometric_phase"], elevation_rad=opt["elevation"],
-        elevation_clipped=(None if opt["elevation_clipped"] is None
-                           else opt["elevation_clipped"].astype(bool)),
-        baseline_m=opt["baseline"],
         noise_power_gain=float(ds.attrs.get("image_noise_power_gain", 1.0)),
-        settings=settings,
-        phase_centers_m={k: np.asarray(v) for k, v in
-                         json.loads(ds.attrs.get("phase_centers_json", "{}")).items()},
+        settings=settings, phase_centers_m=centers,
         range_resolution_m=float(ds.attrs.get("range_resolution_m", 0.0)),
-        azimuth_resolution_rad=float(ds.attrs.get("azimuth_resolution_rad", 0.0)))
+        azimuth_resolution_rad=float(ds.attrs.get("azimuth_resolution_rad", 0.0)),
+        wavelength_m=float(ds.attrs.get("wavelength_m", np.nan)),
+        interferometric=bool(ds.attrs.get("interferometric", {"A", "B"} <= set(groups))))
 
 
 # ---------------------------------------------------------------- detect, count
-def volume_of(tree: xr.DataTree, settings: ProcessingSettings):
-    """The counting volume of a dataset: transmitter 3 dB beam (from /Sonar) x image range."""
+def figure_images(tree: xr.DataTree, pings, settings=None) -> Images:
+    """The images of a few pings (file indices), for figures: the stored ones when the dataset
+    keeps every interpolated row, else formed again from the samples with the settings the
+    detections used (or ``settings``).
+
+    Returns
+    -------
+    Images
+        ``image`` has shape (len(pings), n_groups, n_range, n_beams), in the order of ``pings``.
+    """
+    idx = np.asarray(list(pings), int)
+    pds = tree[PROCESSING_GROUP].ds if PROCESSING_GROUP in tree.children else None
+    if pds is not None and "image_r" in pds and pds.attrs.get("image_storage", "full") == "full":
+        return images_of(tree).pings(idx)
+    if settings is None and pds is not None and "Detections" in tree[PROCESSING_GROUP].children:
+        text = tree[DETECTIONS_GROUP].ds.attrs.get("settings_yaml")
+        if text:
+            settings = validate_file(ProcessingSettings, yaml.safe_load(text) or {},
+                                     file="/Processing/Detections settings_yaml")
+    st = resolve_settings(tree, settings)
+    rec = _record(tree)
+    return form_images(record_pings(rec, idx), st.image, noise_band_hz=_noise_band(tree))
+
+
+def volume_of(tree: xr.DataTree, settings: ProcessingSettings, image_range_m=None):
+    """The counting volume of a dataset: the transmitter's 3 dB beam (from /Sonar) x the image
+    range (settings, else ``image_range_m``, else what /Processing recorded), with the overrides
+    of ``settings.count``."""
     from .counting import counting_volume
     sonar = tree["Sonar"].ds if "Sonar" in tree.children else xr.Dataset()
     cs = settings.count
@@ -182,8 +240,13 @@ def volume_of(tree: xr.DataTree, settings: ProcessingSettings):
                            f"count.elevation_halfwidth_deg in the settings")
     bw_az = np.radians(float(sonar["beamwidth_transmit_major"])) if "beamwidth_transmit_major" in sonar else 1.0
     bw_el = np.radians(float(sonar["beamwidth_transmit_minor"])) if "beamwidth_transmit_minor" in sonar else 1.0
-    r = tree[PROCESSING_GROUP].ds["image_range"].values
-    rng = settings.image.range_m if settings.image.range_m is not None else (float(r[0]), float(r[-1]))
+    rng = settings.image.range_m
+    if rng is None:
+        rng = image_range_m
+    if rng is None:
+        pds = tree[PROCESSING_GROUP].ds
+        rng = (pds.attrs["image_range_m"] if "image_range_m" in pds.attrs
+               else (float(pds["image_range"][0]), float(pds["image_range"][-1])))
     return counting_volume(tx_beamwidth_az_rad=bw_az, tx_beamwidth_el_rad=bw_el,
                            image_range_m=rng, settings=cs)
 
@@ -204,8 +267,21 @@ def pose_of(tree):
     return None
 
 
-def detect(tree: xr.DataTree, settings=None) -> xr.DataTree:
-    """Detections with 3-D positions (thesis chapter 5); runs :func:`image` first if needed.
+def detect(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.DataTree:
+    """Detections with 3-D positions (thesis chapter 5).
+
+    The images are formed from the samples with ``settings`` a few pings at a time
+    (:func:`processing.chain.detect_record`), so memory stays at one chunk's images; images
+    already stored in /Processing are kept in the output but not reused (they may have been made
+    with other settings, or at the data's native range sampling).
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+    settings : ProcessingSettings, dict or path, optional
+    images : {"none", "native", "full"}
+        Also store the images in /Processing (see :func:`image`); by default they are not
+        kept (they follow from the samples and the settings).
 
     Returns
     -------
@@ -224,28 +300,45 @@ def detect(tree: xr.DataTree, settings=None) -> xr.DataTree:
     >>> det = processing.detections_of(processing.detect(tree))          # doctest: +SKIP
     >>> det[["ping", "range_m", "azimuth_rad", "elevation_rad"]].to_dataframe()  # doctest: +SKIP
     """
-    from .detection import detect_all
+    from .chain import detect_record
+    from .dataset import open_tree
     from .noise import NoiseEstimateError
     st = resolve_settings(tree, settings)
-    if PROCESSING_GROUP not in tree.children:
-        tree = image(tree, st)
-    images = images_of(tree)
-    rec = read_record(tree, source=str(tree.attrs.get("title", "dataset")))
-    volume = volume_of(tree, st)
+    rec = _record(tree)
+    band = _noise_band(tree)
     noise_mags = None
     if st.detect.noise.source == "noise_file":
-        from .dataset import open_tree
-        noise_tree = image(open_tree(st.detect.noise.file), st)
-        ni = images_of(noise_tree)
-        g = ni.groups.index(st.detect.image_group) if st.detect.image_group in ni.groups else 0
-        noise_mags = np.abs(ni.image[:, g])
+        noise_rec = read_record(open_tree(st.detect.noise.file), source=str(st.detect.noise.file))
+        try:
+            ni = form_images(noise_rec, st.image, noise_band_hz=band)
+            noise_mags = np.abs(ni.image[:, ni.group_index(st.detect.image_group)])
+        except ValueError as exc:
+            raise DatasetError(f"{st.detect.noise.file}: {exc}") from None
+    if images not in IMAGE_STORAGE:
+        raise ValueError(f"images must be one of {IMAGE_STORAGE}, got {images!r}")
+    # the attributes of the images (range axis, gains, resolution) from one ping
     try:
-        det = detect_all(images, rec, st.detect, volume, upsample=images.interpolation,
-                         pose=pose_of(tree), noise_magnitudes=noise_mags)
+        first = form_images(record_pings(rec, slice(0, 1)), st.image, noise_band_hz=band)
+        volume = volume_of(tree, st, image_range_m=(float(first.range_m[0]), float(first.range_m[-1])))
+        keep = range(rec.samples.shape[0]) if images != "none" else ()
+        det, kept = detect_record(rec, st, volume, noise_band_hz=band, pose=pose_of(tree),
+                                  noise_magnitudes=noise_mags, keep_pings=keep)
     except ValueError as exc:
-        if isinstance(exc, NoiseEstimateError):
+        if isinstance(exc, (NoiseEstimateError, DatasetError)):
             raise
         raise DatasetError(str(exc)) from None
+    out = tree.copy()
+    ping_time = tree[ELEMENT_GROUP].ds["ping_time"].values
+    if images != "none":
+        out[PROCESSING_GROUP] = xr.DataTree(images_dataset(kept, ping_time, st, storage=images))
+    elif PROCESSING_GROUP not in out.children or "image_r" not in out[PROCESSING_GROUP].ds:
+        out[PROCESSING_GROUP] = xr.DataTree(images_dataset(first, ping_time[:1], st, storage="none"))
+    out[DETECTIONS_GROUP] = xr.DataTree(_detections_dataset(det, st, volume, first))
+    return out
+
+
+def _detections_dataset(det, st: ProcessingSettings, volume, images: Images) -> xr.Dataset:
+    """/Processing/Detections of a :class:`~processing.detection.Detections`."""
     t = det.table
     units = {"range_m": "m", "azimuth_rad": "rad", "elevation_rad": "rad", "psi_rad": "rad",
              "x_m": "m", "y_m": "m", "z_m": "m", "world_x_m": "m", "world_y_m": "m",
@@ -265,14 +358,15 @@ def detect(tree: xr.DataTree, settings=None) -> xr.DataTree:
         "noise_fit": det.noise.describe() if det.noise else "none (no noise estimate was needed)",
         "notes": "; ".join(det.notes),
         "snr_db_note": "20 log10(amplitude / noise sigma); NaN where no noise level was estimated",
+        "settings_yaml": dump_yaml(st.model_dump(mode="json", by_alias=True)),
+        "range_resolution_m": images.range_resolution_m,
+        "azimuth_resolution_rad": images.azimuth_resolution_rad,
         "counting_volume_m3": volume.volume_m3, "counting_range_m": list(volume.range_m),
         "counting_azimuth_halfwidth_rad": volume.azimuth_halfwidth_rad,
         "counting_elevation_halfwidth_rad": volume.elevation_halfwidth_rad})
     ds["threshold_per_ping"] = xr.DataArray(det.threshold_per_ping, dims="ping_time",
                                             attrs={"units": "ADC counts"})
-    out = tree.copy()
-    out[DETECTIONS_GROUP] = xr.DataTree(ds)
-    return out
+    return ds
 
 
 def detections_of(tree: xr.DataTree) -> xr.Dataset:
@@ -315,9 +409,16 @@ def _truth(tree, ping_index):
     return {"ping": np.array([index_of[p] for p in pings[keep]], int), "position_m": pos}
 
 
-def count(tree: xr.DataTree, settings=None) -> xr.DataTree:
+def count(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.DataTree:
     """Counts and density per ping, and scores against the truth when the dataset has it;
-    runs :func:`detect` first if needed.
+    runs :func:`detect` first if the dataset holds no detections.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+    settings : ProcessingSettings, dict or path, optional
+    images : {"none", "native", "full"}
+        Passed to :func:`detect` when the detections are made here.
 
     Returns
     -------
@@ -335,15 +436,17 @@ def count(tree: xr.DataTree, settings=None) -> xr.DataTree:
     from .detection import score_all
     st = resolve_settings(tree, settings)
     if (PROCESSING_GROUP not in tree.children or "Detections" not in tree[PROCESSING_GROUP].children):
-        tree = detect(tree, st)
+        tree = detect(tree, st, images=images)
     table = _columns(detections_of(tree))
     volume = volume_of(tree, st)
     eg = tree[ELEMENT_GROUP].ds
     ping_index = eg["ping_index"].values if "ping_index" in eg.variables else np.arange(eg.sizes["ping_time"])
-    pds = tree[PROCESSING_GROUP].ds
+    da = tree[DETECTIONS_GROUP].ds.attrs
+    if "range_resolution_m" not in da:   # written by an earlier abacus: the images' attributes
+        da = tree[PROCESSING_GROUP].ds.attrs
     res = score_all(table, _truth(tree, ping_index), volume, len(ping_index),
-                    dr=float(pds.attrs["range_resolution_m"]),
-                    dtheta=float(pds.attrs["azimuth_resolution_rad"]), gate=st.count.gate_cells,
+                    dr=float(da["range_resolution_m"]),
+                    dtheta=float(da["azimuth_resolution_rad"]), gate=st.count.gate_cells,
                     unresolved=st.count.unresolved_cells)
     ds = xr.Dataset({k: xr.DataArray(v, dims="ping_time") for k, v in res.items()},
                     coords={"ping_time": eg["ping_time"].values,

@@ -18,7 +18,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 __all__ = ["Score", "match", "shares_cell"]
 
@@ -85,6 +84,7 @@ def match(r_d, az_d, r_t, az_t, *, dr: float, dtheta: float, gate: float = 1.0,
         return Score(0, nt, nd, np.zeros(0, int), np.zeros(0, int), shared if nd == 0 else 0)
     d = _cell_distance(r_d, az_d, r_t, az_t, dr, dtheta)
     cost = np.where(d <= gate, d, 1e6)
+    from scipy.optimize import linear_sum_assignment  # here: a 0.3 s import
     rows, cols = linear_sum_assignment(cost)
     ok = cost[rows, cols] < 1e6
     rows, cols = rows[ok], cols[ok]

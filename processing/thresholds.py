@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.ndimage import correlate, rank_filter
-from scipy.optimize import brentq
 
 from .noise import rayleigh_mean
 
@@ -74,6 +73,7 @@ def os_cfar_factor(n_training: int, k: int, pfa: float) -> float:
     hi = 1.0
     while f(hi) > 0:
         hi *= 2
+    from scipy.optimize import brentq  # here: scipy.optimize costs 0.3 s to import
     return float(brentq(f, 0.0, hi, xtol=1e-12))
 
 

@@ -2,12 +2,16 @@
 from __future__ import annotations
 
 import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+# the geometry cache of a test session starts empty and lives in a temporary folder: tests never
+# see a user's cache, and subprocesses (the CLI) inherit the same folder
+os.environ.setdefault("ABACUS_CACHE_DIR", tempfile.mkdtemp(prefix="abacus-test-cache-"))
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"

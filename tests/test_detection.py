@@ -282,7 +282,7 @@ processing:
 def test_elevation_beyond_the_arcsin_range_is_clipped_and_flagged():
     """With a baseline shorter than λ/2 (1.6 mm), noise pushes |ψ| past 2π b/λ: the arcsin
     argument exceeds 1 in those cells. They are clipped and flagged; nothing is NaN."""
-    tree = processing.detect(simulate(scene(SMALL_BASELINE)))
+    tree = processing.detect(processing.image(simulate(scene(SMALL_BASELINE))))
     im = processing.images_of(tree)
     assert np.all(np.isfinite(im.elevation_rad))
     assert 0 < im.elevation_clipped.mean() < 0.5

@@ -17,15 +17,33 @@ def add_parser(sub):
     b.set_defaults(func=command)
 
 
-def beams(scene, outdir: Path | None, as_json: bool) -> dict:
-    """Print the beam table of a scene's sonar (and write plots into ``outdir``)."""
+def _geometry(scene):
     from acoustics.medium import Medium
-    from acoustics.sonar.beam_table import beam_arrays, beam_cuts, beam_table, format_beam_table
-    medium = Medium.from_spec(scene.medium)
-    f0 = scene.signal.center_frequency_hz
     geometry = (scene.sonar.preset_geometry.model_dump()
                 if scene.sonar.preset == "abacus" and scene.sonar.variant == "abacus" else None)
-    table = beam_table(medium=medium, frequency_hz=f0, geometry=geometry)
+    return Medium.from_spec(scene.medium), scene.signal.center_frequency_hz, geometry
+
+
+def beam_numbers(scene) -> dict:
+    """The beam table of a scene's sonar (cached per geometry)."""
+    from acoustics.sonar.beam_table import beam_table
+    medium, f0, geometry = _geometry(scene)
+    return beam_table(medium=medium, frequency_hz=f0, geometry=geometry)
+
+
+def beam_figures(scene, outdir: Path) -> list[Path]:
+    """The beam-pattern figures of a scene's sonar (thesis Figs. 3.11, 3.15, 3.17)."""
+    from acoustics.sonar.beam_table import beam_arrays, beam_cuts
+    from acoustics.sonar.plots import plot_beam_figures
+    medium, f0, geometry = _geometry(scene)
+    return plot_beam_figures(beam_cuts(beam_arrays(geometry), medium=medium, frequency_hz=f0), outdir)
+
+
+def beams(scene, outdir: Path | None, as_json: bool) -> dict:
+    """Print the beam table of a scene's sonar (and write plots into ``outdir``)."""
+    from acoustics.sonar.beam_table import format_beam_table
+    medium, f0, _ = _geometry(scene)
+    table = beam_numbers(scene)
     if as_json:
         print(json.dumps(table, indent=2))
     else:
@@ -33,9 +51,7 @@ def beams(scene, outdir: Path | None, as_json: bool) -> dict:
               f"(λ = {medium.sound_speed_m_s / f0 * 1e3:.4g} mm)")
         print(format_beam_table(table))
     if outdir is not None:
-        from acoustics.sonar.plots import plot_beam_figures
-        cuts = beam_cuts(beam_arrays(geometry), medium=medium, frequency_hz=f0)
-        paths = plot_beam_figures(cuts, outdir)
+        paths = beam_figures(scene, outdir)
         if not as_json:
             for p in paths:
                 print(f"wrote {p}")

@@ -30,6 +30,7 @@ def command(args) -> int:
         print(f"wrote {args.output}")
     if args.plots:
         from processing.plots import image_figures
-        for p in image_figures(processing.images_of(out_tree), Path(args.plots), ping=args.ping):
+        from processing.products import figure_images
+        for p in image_figures(figure_images(out_tree, [args.ping]), Path(args.plots), ping=0):
             print(f"wrote {p}")
     return 0

@@ -1,10 +1,19 @@
-"""``abacus run``: the main job — simulate, image, detect, locate, count; dataset and plots."""
+"""``abacus run``: the main job — simulate, image, detect, locate, count; dataset and figures.
+
+The run folder appears complete or not at all: the numbers (dataset, detections, counts, the
+resolved scene, the beam table) are written into a hidden staging folder next to it, which is
+renamed into place when they are all there. Figures come after the numbers are saved, each
+figure folder again staged and renamed, so a failure or Ctrl-C while drawing never costs the
+numbers and never leaves half a folder.
+"""
 from __future__ import annotations
 
+import argparse
 import json
+import re
 from pathlib import Path
 
-from acoustics.cli.common import Progress, load, ping_list
+from acoustics.cli.common import Progress, UsageError, load, ping_list
 
 HELP = "the main job: simulate, image, detect, locate, count"
 
@@ -14,32 +23,68 @@ def add_parser(sub):
     r.add_argument("scene", help="scene file (YAML) or a built-in scene's name (e.g. default)")
     r.add_argument("-o", "--output", help="output folder (default runs/<scene name>)")
     r.add_argument("--pings", type=int, help="number of pings (default: the scene's)")
+    r.add_argument("--plots", action=argparse.BooleanOptionalAction, default=True,
+                   help="draw the figures (default; --no-plots: numbers only)")
+    r.add_argument("--images", choices=["none", "native", "full"], default="none",
+                   help="store the images in run.nc: none (default; they follow from the samples), "
+                        "native (at the data's range sampling) or full (every interpolated row)")
+    r.add_argument("--overwrite", action="store_true",
+                   help="replace an existing output folder (default: refuse)")
     r.set_defaults(func=command)
+
+
+def default_run_folder(name: str) -> Path:
+    """``runs/<name>``, the name reduced to letters, digits, '-', '_' and '.' (no separators,
+    no '..'), so a scene's name can never point outside ``runs/``."""
+    safe = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "scene"
+    return Path("runs") / safe
 
 
 def command(args) -> int:
     import processing
-    from acoustics.cli.beams import beams
+    from acoustics.cli.beams import beam_numbers
     from acoustics.simulation.run import simulate
+    from processing.atomic import staged, write_text_atomic
     from processing.dataset import write_tree
     scene = load(args.scene)
-    outdir = Path(args.output or Path("runs") / scene.name)
-    outdir.mkdir(parents=True, exist_ok=True)
+    outdir = Path(args.output) if args.output else default_run_folder(scene.name)
+    if outdir.exists() and not args.overwrite:
+        raise UsageError(f"{outdir} exists: choose another -o, or --overwrite to replace it")
+    if outdir.exists() and not outdir.is_dir():
+        raise UsageError(f"{outdir} is a file, not a folder: choose another -o")
+    outdir.parent.mkdir(parents=True, exist_ok=True)
     print(f"scene '{scene.name}' ({args.scene}): {scene.pings.count} ping(s), "
           f"sha256 {scene.sha256()[:12]}")
-    (outdir / "scene.resolved.yaml").write_text(scene.resolved_text())
-    beams(scene, outdir / "beams", False)
     tree = simulate(scene, pings=ping_list(scene, args.pings), progress=Progress("simulate"))
-    tree = processing.count(tree)
+    tree = processing.count(tree, images=args.images)
     result = processing.count_summary(tree)
-    write_tree(tree, outdir / "run.nc")
-    processing.write_csv(tree, outdir / "detections.csv")
-    (outdir / "counts.json").write_text(json.dumps(result, indent=1))
-    from processing.plots import count_figures, image_figures
-    image_figures(processing.images_of(tree), outdir / "images")
-    n = tree["Processing/Counts"].sizes["ping_time"]
-    count_figures(tree, outdir / "counts", pings=range(min(n, 3)))
+    with staged(outdir) as tmp:
+        tmp.mkdir()
+        write_tree(tree, tmp / "run.nc")
+        processing.write_csv(tree, tmp / "detections.csv")
+        write_text_atomic(tmp / "counts.json", json.dumps(result, indent=1))
+        write_text_atomic(tmp / "scene.resolved.yaml", scene.resolved_text())
+        write_text_atomic(tmp / "beams.json", json.dumps(beam_numbers(scene), indent=1))
     print()
     print(processing.format_counts(result))
-    print(f"\noutputs in {outdir}/: run.nc (dataset), detections.csv, counts.json, beams/, images/, counts/")
+    made = "run.nc (dataset), detections.csv, counts.json, beams.json, scene.resolved.yaml"
+    if args.plots:
+        _figures(scene, tree, outdir)
+        made += ", images/, counts/, beams/"
+    print(f"\noutputs in {outdir}/: {made}")
     return 0
+
+
+def _figures(scene, tree, outdir: Path):
+    """The run's figures, drawn after its numbers are saved (each folder staged)."""
+    from acoustics.cli.beams import beam_figures
+    from processing.atomic import staged
+    from processing.plots import count_figures, image_figures
+    from processing.products import figure_images
+    n = tree["Processing/Counts"].sizes["ping_time"]
+    with staged(outdir / "images") as tmp:
+        image_figures(figure_images(tree, [0]), tmp, ping=0)
+    with staged(outdir / "counts") as tmp:
+        count_figures(tree, tmp, pings=range(min(n, 3)))
+    with staged(outdir / "beams") as tmp:
+        beam_figures(scene, tmp)

@@ -10,6 +10,7 @@ import numpy as np
 from acoustics.sonar.arrays import Receiver, abacus_receiver, abacus_transmitter, mode_channels
 from acoustics.sonar.beams import summarize_beam
 from acoustics.medium import Medium
+from acoustics.sonar.cache import per_geometry
 
 __all__ = ["THESIS_BEAMS", "beam_arrays", "beam_table", "format_beam_table"]
 
@@ -50,12 +51,22 @@ def beam_arrays(geometry: dict | None = None) -> dict:
 
 def beam_table(*, medium: Medium | None = None, frequency_hz: float | None = None,
                geometry: dict | None = None) -> dict:
-    """Nested dict ``{array: {variant: {mode: numbers}}}`` with the DESIGN.md keys."""
-    out: dict = {}
-    for (array, variant, mode), arr in beam_arrays(geometry).items():
-        s = summarize_beam(arr, medium=medium, frequency_hz=frequency_hz)
-        out.setdefault(array, {}).setdefault(variant, {})[mode] = s.as_dict()
-    return out
+    """Nested dict ``{array: {variant: {mode: numbers}}}`` with the DESIGN.md keys.
+
+    A function of the geometry, the sound speed and the frequency only: computed once and kept
+    in the geometry cache (:mod:`acoustics.sonar.cache`, memory and disk).
+    """
+    medium = medium or Medium()
+    key = (tuple(sorted((geometry or {}).items())), float(medium.sound_speed_m_s),
+           None if frequency_hz is None else float(frequency_hz))
+
+    def compute():
+        out: dict = {}
+        for (array, variant, mode), arr in beam_arrays(geometry).items():
+            s = summarize_beam(arr, medium=medium, frequency_hz=frequency_hz)
+            out.setdefault(array, {}).setdefault(variant, {})[mode] = s.as_dict()
+        return out
+    return per_geometry("beam_table", key, compute)
 
 
 def format_beam_table(table: dict) -> str:

@@ -10,7 +10,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
 
 from acoustics.sonar.arrays import ElementArray
 from acoustics.sonar.directivity import array_pattern
@@ -105,6 +104,7 @@ def _measure(array, *, plane, level_db, medium, frequency_hz, fidelity, distance
     i, lo, hi = _main_lobe(a, mag)
     # refine the peak on the continuous pattern
     if 0 < i < len(a) - 1:
+        from scipy.optimize import minimize_scalar  # here: a 0.3 s import, cached results
         res = minimize_scalar(lambda x: -f(x)[0], bounds=(a[i - 1], a[i + 1]), method="bounded",
                               options={"xatol": 1e-10})
         peak_angle, peak = float(res.x), float(-res.fun)
@@ -123,6 +123,7 @@ def _measure(array, *, plane, level_db, medium, frequency_hz, fidelity, distance
             raise ValueError(f"{array.name}: the {plane} pattern never falls {-level_db:g} dB "
                              f"below its peak within ±90°")
         x0, x1 = sorted((a[j], a[j + direction]))
+        from scipy.optimize import brentq
         edges.append(brentq(g, x0, x1, xtol=1e-12) if g(x0) * g(x1) < 0 else a[j + direction])
     return _Lobe(peak_angle, peak, edges[0], edges[1]), (a, mag, lo, hi)
 
