@@ -87,6 +87,9 @@ def range_energy_width_m(rfilter: RangeFilter, sound_speed_m_s: float) -> float:
     return float(np.mean(resp**2) / np.mean(resp) ** 2 / rfilter.rate_hz * sound_speed_m_s / 2)
 
 
+_SOLID_ANGLES: dict = {}
+
+
 def beam_solid_angle_sr(calibration: Calibration, geometry: SubarrayGeometry, beam_angle_rad,
                         wavelength_m: float) -> np.ndarray:
     """Ψ_b = ∫ Φ(θ) |B_b(θ)|² dθ (sr) of each beam.
@@ -103,6 +106,17 @@ def beam_solid_angle_sr(calibration: Calibration, geometry: SubarrayGeometry, be
     -------
     ndarray, shape (n_beams,)
     """
+    key = (calibration.azimuth_rad.tobytes(), calibration.elevation_width_rad.tobytes(),
+           geometry.positions_m.tobytes(), geometry.weights.tobytes(),
+           np.asarray(beam_angle_rad, float).tobytes(), float(wavelength_m))
+    if key not in _SOLID_ANGLES:   # the same for every ping of a run: computed once per process
+        if len(_SOLID_ANGLES) > 16:
+            _SOLID_ANGLES.clear()
+        _SOLID_ANGLES[key] = _solid_angles(calibration, geometry, beam_angle_rad, wavelength_m)
+    return _SOLID_ANGLES[key].copy()
+
+
+def _solid_angles(calibration, geometry, beam_angle_rad, wavelength_m):
     az = calibration.azimuth_rad
     th = np.linspace(az[0], az[-1], max(20 * az.size, 4001))
     phi = np.interp(th, az, calibration.elevation_width_rad)

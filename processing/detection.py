@@ -17,7 +17,7 @@ Everything tested with numbers: the number of cells N tested per image counts na
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -32,7 +32,7 @@ from .settings import DetectSettings
 from .thresholds import cell_pfa, cfar_threshold, rayleigh_threshold
 
 __all__ = ["DetectionWarning", "Detections", "detect_all", "score_all", "n_tested_cells", "noise_cells",
-           "fit_noise_cells", "noise_fit"]
+           "fit_noise_cells", "noise_fit", "Thresholds", "ping_thresholds", "candidates", "select"]
 
 
 class DetectionWarning(UserWarning):
@@ -171,39 +171,89 @@ def detect_all(images: Images, record, settings: DetectSettings, volume: Countin
     NoiseEstimateError
         A Rayleigh threshold was asked for but the images carry no noise.
     """
+    g = images.group_index(settings.image_group)
+    mags = np.abs(images.image[:, g])
+    thr = ping_thresholds(mags, settings, images.range_m, images.beam_angle_rad, volume,
+                          upsample=upsample, noise_magnitudes=noise_magnitudes, noise=noise)
+    if noise is None and thr.noise is not None and not thr.noise.rayleigh_like:
+        msg = (f"the noise cells are not Rayleigh-like ({thr.noise.describe()}): the derived "
+               f"threshold may not hold its false-alarm rate")
+        warnings.warn(msg, DetectionWarning, stacklevel=2)
+        thr.notes.append(msg)
+    table = candidates(images, record, settings, thr.per_ping, volume, pose=pose)
+    return Detections(select(table, thr), thr.median, thr.noise, thr.pfa_cell, thr.n_cells,
+                      thr.notes)
+
+
+@dataclass
+class Thresholds:
+    """The threshold of every ping under one detection setting.
+
+    Attributes
+    ----------
+    per_ping : list of (float or ndarray of shape (n_range, n_beams))
+        A scalar threshold, or one per cell (CFAR), for each ping (ADC counts).
+    median : ndarray, shape (n_pings,)
+        Scalar summary per ping (for CFAR the median over the tested cells).
+    sigma : ndarray, shape (n_pings,)
+        The noise scale behind each ping's threshold (NaN where none was estimated).
+    noise : RayleighFit or None
+    pfa_cell : float or None
+    n_cells : int
+    """
+
+    per_ping: list
+    median: np.ndarray
+    sigma: np.ndarray
+    noise: RayleighFit | None
+    pfa_cell: float | None
+    n_cells: int
+    notes: list = field(default_factory=list)
+
+    def floor(self, other: "Thresholds") -> "Thresholds":
+        """The lower of two settings' thresholds, per ping and cell (for a shared candidate pool)."""
+        return replace(self, per_ping=[np.minimum(a, b) for a, b in zip(self.per_ping, other.per_ping)])
+
+
+def ping_thresholds(mags, settings: DetectSettings, range_m, beam_angle_rad, volume: CountingVolume, *,
+                    upsample: int, noise_magnitudes=None, noise=None) -> Thresholds:
+    """Thresholds of every ping (thesis §5.2): from a false-alarm probability and the noise,
+    fixed, a fraction of the ping's peak, or CFAR.
+
+    Parameters
+    ----------
+    mags : ndarray, shape (n_pings, n_range, n_beams)
+        |I| (ADC counts) of the image group detected on.
+    settings : DetectSettings
+    range_m : ndarray, shape (n_range,)
+    beam_angle_rad : ndarray, shape (n_beams,)
+    volume : CountingVolume
+        Sets the number of cells tested (for the per-cell false-alarm probability).
+    upsample : int
+    noise_magnitudes : ndarray, optional
+        |I| of a noise-only dataset (``noise.source: noise_file``).
+    noise : RayleighFit, optional
+        A pooled fit to use instead of fitting these images.
+
+    Raises
+    ------
+    NoiseEstimateError
+        A noise-derived threshold on noise-free images.
+    """
     st = settings
-    groups = images.groups
-    if st.image_group not in groups:
-        raise ValueError(f"detect.image_group {st.image_group!r} is not an image of this dataset "
-                         f"(images: {', '.join(groups)})")
-    g = groups.index(st.image_group)
-    img = images.image[:, g]
-    mags = np.abs(img)
-    r, th = images.range_m, images.beam_angle_rad
+    r, th = range_m, beam_angle_rad
     n_ping = mags.shape[0]
     n_cells = n_tested_cells(r, th, volume, upsample)
-    fit = None
-    pfa = None
-    notes = []
-    if st.method in ("rayleigh", "cfar"):
-        pfa = cell_pfa(st.pfa_image, n_cells, convention=st.convention)
-    if noise is not None:
-        fit = noise
-    elif st.needs_noise or st.noise.source != "image":
+    fit = noise
+    pfa = cell_pfa(st.pfa_image, n_cells, convention=st.convention) if st.method in ("rayleigh", "cfar") else None
+    if fit is None and (st.needs_noise or st.noise.source != "image"):
         try:
             if not st.noise.per_ping:
                 fit = noise_fit(mags, st, r, th, upsample, noise_magnitudes)
         except NoiseEstimateError:
             if st.needs_noise:
                 raise
-    if noise is None and fit is not None and not fit.rayleigh_like:
-        msg = (f"the noise cells are not Rayleigh-like ({fit.describe()}): the derived threshold "
-               f"may not hold its false-alarm rate")
-        warnings.warn(msg, DetectionWarning, stacklevel=2)
-        notes.append(msg)
-    cols = {k: [] for k in ("ping", "row", "beam", "threshold")}
-    thr_ping = np.zeros(n_ping)
-    sigmas = np.zeros(n_ping)
+    per_ping, median, sigmas = [], np.zeros(n_ping), np.zeros(n_ping)
     for p in range(n_ping):
         m = mags[p]
         sigma_p = fit.sigma if fit is not None else np.nan
@@ -223,23 +273,61 @@ def detect_all(images: Images, record, settings: DetectSettings, volume: Countin
             if not np.isfinite(thr).any():
                 raise NoiseEstimateError("CFAR found no noise in any training window (a noise-free "
                                          "image): use a fixed threshold or a fraction of the peak")
-        rows, beams = local_maxima(m, above=thr)
-        t_cell = thr[rows, beams] if np.ndim(thr) else np.full(rows.size, thr)
-        cols["ping"].append(np.full(rows.size, p))
-        cols["row"].append(rows)
-        cols["beam"].append(beams)
-        cols["threshold"].append(t_cell)
-        thr_ping[p] = float(np.median(thr[np.isfinite(thr)])) if np.ndim(thr) else thr
+        per_ping.append(thr)
+        median[p] = float(np.median(thr[np.isfinite(thr)])) if np.ndim(thr) else thr
         sigmas[p] = sigma_p
-    ping = np.concatenate(cols["ping"]).astype(int)
-    row = np.concatenate(cols["row"]).astype(int)
-    beam = np.concatenate(cols["beam"]).astype(int)
-    threshold = np.concatenate(cols["threshold"]).astype(float)
+    return Thresholds(per_ping, median, sigmas, fit, pfa, n_cells)
+
+
+def candidates(images: Images, record, settings: DetectSettings, per_ping, volume: CountingVolume, *,
+               pose=None) -> dict:
+    """Every local maximum above a threshold, refined, located and flagged (one row each).
+
+    Parameters
+    ----------
+    images : Images
+    record : SonarRecord
+    settings : DetectSettings
+        Only ``image_group`` is used.
+    per_ping : list of (float or ndarray)
+        Threshold of each ping (scalar or per cell); pass the lowest of several settings to
+        describe a pool that :func:`select` then filters for each.
+    volume : CountingVolume
+    pose : (position_m (3,), rotation (3, 3)), optional
+
+    Returns
+    -------
+    dict of ndarray, each shape (n,)
+        The detections table without ``threshold`` and ``snr_db`` (see :class:`Detections`).
+    """
+    g = images.group_index(settings.image_group)
+    img = images.image[:, g]
+    mags = np.abs(img)
+    found = [local_maxima(mags[p], above=t) for p, t in enumerate(per_ping)]
+    ping = np.concatenate([np.full(rows.size, p) for p, (rows, _) in enumerate(found)]).astype(int) \
+        if found else np.zeros(0, int)
+    row = np.concatenate([rows for rows, _ in found]).astype(int) if found else np.zeros(0, int)
+    beam = np.concatenate([b for _, b in found]).astype(int) if found else np.zeros(0, int)
     table = _describe(images, record, img, mags, ping, row, beam, volume, pose)
-    table["threshold"] = threshold
+    table["cell_magnitude"] = mags[ping, row, beam] if ping.size else np.zeros(0)
+    return table
+
+
+def select(table: dict, thresholds: Thresholds) -> dict:
+    """The rows of a candidate table whose cell exceeds this setting's threshold, with their
+    ``threshold`` and ``snr_db`` (exactly what detecting with this threshold alone gives:
+    a local maximum's definition does not depend on the threshold)."""
+    ping = table["ping"]
+    thr = np.array([t[r, b] if np.ndim(t) else t for t, r, b in
+                    ((thresholds.per_ping[p], r, b) for p, r, b in zip(ping, table["row"], table["beam"]))],
+                   float) if ping.size else np.zeros(0)
+    keep = table["cell_magnitude"] > thr
+    out = {k: v[keep] for k, v in table.items() if k != "cell_magnitude"}
+    out["threshold"] = thr[keep]
     with np.errstate(divide="ignore", invalid="ignore"):
-        table["snr_db"] = 20 * np.log10(table["amplitude"] / sigmas[ping]) if ping.size else np.zeros(0)
-    return Detections(table, thr_ping, fit, pfa, n_cells, notes)
+        out["snr_db"] = (20 * np.log10(out["amplitude"] / thresholds.sigma[out["ping"]])
+                         if keep.any() else np.zeros(0))
+    return out
 
 
 def _describe(images, record, img, mags, ping, row, beam, volume, pose):

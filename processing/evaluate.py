@@ -14,7 +14,8 @@ import xarray as xr
 from .beamforming import SubarrayGeometry
 from .compression import RangeFilter
 from .dataset import TRUTH_GROUP, read_record
-from .detection import noise_fit, detect_all, score_all
+from .detection import candidates, noise_fit, ping_thresholds, score_all, select
+from .imaging import form_images
 from .calibration import beam_solid_angle_sr, calibration_of, range_energy_width_m
 from .echo_integration import volume_backscattering
 from .noise import NoiseEstimateError
@@ -74,36 +75,50 @@ def evaluate(tree: xr.DataTree, settings_list) -> dict:
     out = {k: np.full((n_set, n_pings), np.nan) for k in PER_PING_KEYS}
     hist = np.zeros((n_pings, NOISE_BINS.size - 1))
     notes: list[str] = []
+    pose = products.pose_of(tree)
     try:
         cal = calibration_of(tree)
     except Exception as exc:  # a recorded dataset without calibration: counts still work
         cal = None
         notes.append(f"no echo integration: {exc}")
-    imaged: dict[str, tuple] = {}
+    truth = _truth(tree, rec.ping_index)
+    imaged: dict[str, object] = {}      # image settings -> Images (formed once)
     equivalent: dict = {}     # (image settings, group) -> (L_r, Ψ_b): once per image
     noise: dict = {}          # (image settings, group, noise settings) -> σ̂ per ping
-    for i, st in enumerate(settings_list):
+    integrated: dict = {}     # (image, group, noise, volume) -> s_v per ping
+    # 1. thresholds of every setting; settings that differ only in their threshold (a sweep)
+    #    share one pool of candidate peaks, described once
+    plans = []
+    for st in settings_list:
         key = st.image.model_dump_json()
         if key not in imaged:
-            t_img = products.image(tree, st)
-            imaged[key] = (t_img, products.images_of(t_img))
-        t_img, im = imaged[key]
-        eg_index = rec.ping_index
-        volume = products.volume_of(t_img, st)
-        det = detect_all(im, rec, st.detect, volume, upsample=im.interpolation,
-                         pose=products.pose_of(t_img))
-        truth = _truth(tree, eg_index)
-        res = score_all(det.table, truth, volume, n_pings, dr=im.range_resolution_m,
+            imaged[key] = form_images(rec, st.image, noise_band_hz=products.noise_band_of(tree))
+        im = imaged[key]
+        volume = products.volume_of(tree, st, image_range_m=(im.range_m[0], im.range_m[-1]))
+        mags = np.abs(im.image[:, im.group_index(st.detect.image_group)])
+        thr = ping_thresholds(mags, st.detect, im.range_m, im.beam_angle_rad, volume,
+                              upsample=im.interpolation)
+        if thr.noise is not None and not thr.noise.rayleigh_like:
+            notes.append(f"the noise cells are not Rayleigh-like ({thr.noise.describe()})")
+        pool_key = (key, st.detect.image_group, volume)
+        plans.append((st, key, im, volume, mags, thr, pool_key))
+    floors: dict = {}
+    for _, _, _, _, _, thr, pool_key in plans:
+        floors[pool_key] = thr if pool_key not in floors else floors[pool_key].floor(thr)
+    pools = {k: candidates(imaged[k[0]], rec, settings_list[0].detect.model_copy(
+                 update={"image_group": k[1]}), f.per_ping, k[2], pose=pose)
+             for k, f in floors.items()}
+    for i, (st, key, im, volume, mags, thr, pool_key) in enumerate(plans):
+        table = select(pools[pool_key], thr)
+        res = score_all(table, truth, volume, n_pings, dr=im.range_resolution_m,
                         dtheta=im.azimuth_resolution_rad, gate=st.count.gate_cells,
                         unresolved=st.count.unresolved_cells)
         for k, v in res.items():
             if k in out:
                 out[k][i] = v
-        out["threshold_counts"][i] = det.threshold_per_ping
+        out["threshold_counts"][i] = thr.median
         # noise: the detector's own estimate where it has one (a region or a noise file); a
         # median over an image full of fish or sidelobes is no noise level to subtract
-        g = im.groups.index(st.detect.image_group)
-        mags = np.abs(im.image[:, g])
         sigma = np.zeros(n_pings)
         if st.detect.needs_noise or st.detect.noise.source != "image":
             n_key = (key, st.detect.image_group, st.detect.noise.model_dump_json())
@@ -111,7 +126,7 @@ def evaluate(tree: xr.DataTree, settings_list) -> dict:
                 for p in range(n_pings):
                     try:
                         sigma[p] = noise_fit(mags[p:p + 1], st.detect, im.range_m,
-                                              im.beam_angle_rad, im.interpolation).sigma
+                                             im.beam_angle_rad, im.interpolation).sigma
                     except NoiseEstimateError:
                         sigma[p] = 0.0
                 noise[n_key] = sigma
@@ -129,8 +144,12 @@ def evaluate(tree: xr.DataTree, settings_list) -> dict:
                 equivalent[ei_key] = (range_energy_width_m(rf, rec.sound_speed_m_s),
                                       beam_solid_angle_sr(cal, geo, im.beam_angle_rad, rec.wavelength_m))
             l_r, psi = equivalent[ei_key]
-            sv = volume_backscattering(mags, im.range_m, im.beam_angle_rad, volume, cal,
-                                       range_width_m=l_r, solid_angle_sr=psi, noise_power=2 * sigma**2)
+            sv_key = (key, st.detect.image_group, sigma.tobytes(), volume)
+            if sv_key not in integrated:
+                integrated[sv_key] = volume_backscattering(
+                    mags, im.range_m, im.beam_angle_rad, volume, cal, range_width_m=l_r,
+                    solid_angle_sr=psi, noise_power=2 * sigma**2)
+            sv = integrated[sv_key]
             out["s_v_per_m"][i] = sv
             dens = res["density_per_m3"]
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -141,7 +160,7 @@ def evaluate(tree: xr.DataTree, settings_list) -> dict:
                 k = inside & (truth["ping"] == p)
                 if k.any():
                     out["true_sigma_bs_m2"][i, p] = float(np.mean(truth["rho_m"][k] ** 2))
-    return {"per_ping": out, "noise_histogram": hist, "notes": notes}
+    return {"per_ping": out, "noise_histogram": hist, "notes": sorted(set(notes))}
 
 
 def _noise_histogram(mags, sigma, st: ProcessingSettings, im) -> np.ndarray:

@@ -12,7 +12,7 @@ from scipy.ndimage import map_coordinates
 
 from .atomic import staged
 
-__all__ = ["fan_beam", "plot_fan", "plot_range_profiles", "plot_phase_map", "save"]
+__all__ = ["fan_beam", "plot_fan", "plot_range_profiles", "plot_phase_map", "save", "fixed_layout"]
 
 
 def fan_beam(magnitude, range_m, beam_angle_rad, *, pixel_m: float | None = None,
@@ -146,6 +146,15 @@ def plot_phase_map(ax, psi, magnitude, range_m, beam_angle_rad, *, floor_db=-30.
     cb.set_label("ψ_AB (rad)")
 
 
+def fixed_layout(fig, *, left=0.8, right=0.25, bottom=0.6, top=0.45, wspace=0.3, hspace=0.3):
+    """Margins in inches (fixed, not computed: a layout engine measures every tick label and
+    doubles a figure's cost); ``wspace``/``hspace`` as fractions of the axes' size."""
+    w, h = fig.get_size_inches()
+    fig.subplots_adjust(left=left / w, right=1 - right / w, bottom=bottom / h, top=1 - top / h,
+                        wspace=wspace, hspace=hspace)
+    return fig
+
+
 def save(fig, path: Path):
     """Write a figure atomically (temporary file, then rename)."""
     path = Path(path)
@@ -166,14 +175,14 @@ def image_figures(images: dict, outdir: Path, *, ping: int = 0) -> list[Path]:
     groups = images.groups
     r, th = images.range_m, images.beam_angle_rad
     paths = []
-    fig, axes = plt.subplots(1, len(groups), figsize=(5.5 * len(groups), 7), constrained_layout=True,
-                             squeeze=False)
+    fig, axes = plt.subplots(1, len(groups), figsize=(5.5 * len(groups), 7), squeeze=False)
+    fixed_layout(fig, left=0.7, right=0.9, wspace=0.5)
     for ax, g, im in zip(axes[0], groups, img):
         plot_fan(ax, np.abs(im), r, th, title=f"fan-beam image, subarray {g}, ping {ping}")
     paths.append(save(fig, outdir / "fan_beam.png"))
     plt.close(fig)
-    fig, axes = plt.subplots(1, len(groups), figsize=(5.5 * len(groups), 6), constrained_layout=True,
-                             squeeze=False)
+    fig, axes = plt.subplots(1, len(groups), figsize=(5.5 * len(groups), 6), squeeze=False)
+    fixed_layout(fig, left=0.7, right=0.2, wspace=0.35)
     for ax, g, im in zip(axes[0], groups, img):
         mag = np.abs(im)
         m = _raster(ax, _db(mag, max(mag.max(), 1e-300)), r, th, vmin=-40, vmax=0)
@@ -183,13 +192,15 @@ def image_figures(images: dict, outdir: Path, *, ping: int = 0) -> list[Path]:
         fig.colorbar(m, ax=ax).set_label("|I| (dB re max)")
     paths.append(save(fig, outdir / "image.png"))
     plt.close(fig)
-    fig, ax = plt.subplots(figsize=(9, 4), constrained_layout=True)
+    fig, ax = plt.subplots(figsize=(9, 4))
+    fixed_layout(fig)
     plot_range_profiles(ax, img[0], r, th)
     ax.set_title(f"range profiles, subarray {groups[0]}, ping {ping}")
     paths.append(save(fig, outdir / "range_profiles.png"))
     plt.close(fig)
     if images.psi_rad is not None:
-        fig, ax = plt.subplots(figsize=(6.5, 6), constrained_layout=True)
+        fig, ax = plt.subplots(figsize=(6.5, 6))
+        fixed_layout(fig, left=0.7, right=0.1)
         plot_phase_map(ax, images.psi_rad[ping], np.abs(img[0]), r, th)
         ax.set_title(f"interferometric phase ψ_AB, ping {ping}")
         paths.append(save(fig, outdir / "phase.png"))
@@ -224,7 +235,8 @@ def count_figures(tree, outdir: Path, *, pings=(0,), max_pings: int = 5,
     g = 0
     for i, p in enumerate(pings):
         k = det["ping"] == p
-        fig, axes = plt.subplots(1, 3, figsize=(16, 6), constrained_layout=True)
+        fig, axes = plt.subplots(1, 3, figsize=(16, 6))
+        fixed_layout(fig, left=0.7, right=0.2, wspace=0.3)
         xs = det["range_m"][k] * np.sin(det["azimuth_rad"][k])
         zs = det["range_m"][k] * np.cos(det["azimuth_rad"][k])
         plot_fan(axes[0], np.abs(im.image[i, g]), r, th,
@@ -257,7 +269,8 @@ def count_figures(tree, outdir: Path, *, pings=(0,), max_pings: int = 5,
         plt.close(fig)
     if not counts:
         return paths
-    fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True, constrained_layout=True)
+    fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    fixed_layout(fig, left=0.8, hspace=0.15)
     x = cnt["ping_index"]
     if "true_in_volume" in cnt:
         axes[0].plot(x, cnt["true_in_volume"], "k-", lw=1.2, label="true, in volume")

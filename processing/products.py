@@ -56,7 +56,8 @@ def resolve_settings(tree: xr.DataTree | None, settings=None) -> ProcessingSetti
     return ProcessingSettings()
 
 
-def _noise_band(tree) -> float | None:
+def noise_band_of(tree) -> float | None:
+    """The receiver noise band (Hz) the dataset records (for the images' noise gain), or None."""
     attrs = tree[ELEMENT_GROUP].ds.attrs
     for key in ("noise_bandwidth_hz", "receiver_bandwidth_hz"):
         if key in attrs:
@@ -152,7 +153,7 @@ def image(tree: xr.DataTree, settings=None, *, storage: str = "full") -> xr.Data
     st = resolve_settings(tree, settings)
     rec = _record(tree)
     try:
-        im = form_images(rec, st.image, noise_band_hz=_noise_band(tree))
+        im = form_images(rec, st.image, noise_band_hz=noise_band_of(tree))
     except ValueError as exc:
         raise DatasetError(str(exc)) from None
     out = tree.copy()
@@ -219,7 +220,7 @@ def figure_images(tree: xr.DataTree, pings, settings=None) -> Images:
                                      file="/Processing/Detections settings_yaml")
     st = resolve_settings(tree, settings)
     rec = _record(tree)
-    return form_images(record_pings(rec, idx), st.image, noise_band_hz=_noise_band(tree))
+    return form_images(record_pings(rec, idx), st.image, noise_band_hz=noise_band_of(tree))
 
 
 def volume_of(tree: xr.DataTree, settings: ProcessingSettings, image_range_m=None):
@@ -305,7 +306,7 @@ def detect(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.Data
     from .noise import NoiseEstimateError
     st = resolve_settings(tree, settings)
     rec = _record(tree)
-    band = _noise_band(tree)
+    band = noise_band_of(tree)
     noise_mags = None
     if st.detect.noise.source == "noise_file":
         noise_rec = read_record(open_tree(st.detect.noise.file), source=str(st.detect.noise.file))

@@ -19,9 +19,15 @@ import xarray as xr
 
 from .atomic import write_text_atomic
 from .noise import rayleigh_mean
-from .plots import save
+from .plots import fixed_layout, save as _save_png
 
 __all__ = ["write_report", "report_figures", "plateau", "PLATEAU_TARGETS"]
+
+
+def save(fig, path):
+    """Fixed margins (no layout engine: it would double each figure's cost), then write."""
+    fixed_layout(fig, left=0.85, right=0.3, bottom=0.65, top=0.35, wspace=0.3)
+    return _save_png(fig, path)
 
 
 def _plt():
@@ -102,7 +108,7 @@ def report_figures(ds: xr.Dataset, outdir) -> list[tuple[str, Path, str]]:
     ping = ds["ping"].values
     has_truth = bool(np.isfinite(base["true_in_volume"].values).any())
     # counts vs ping
-    fig, ax = plt.subplots(figsize=(9, 4), constrained_layout=True)
+    fig, ax = plt.subplots(figsize=(9, 4))
     if has_truth:
         ax.plot(ping, base["true_in_volume"], "k-", lw=1.3, label="true, in the counting volume")
     ax.plot(ping, base["count_before"], "-", color="tab:orange", lw=1, label="detected in span (before interferometry)")
@@ -116,7 +122,7 @@ def report_figures(ds: xr.Dataset, outdir) -> list[tuple[str, Path, str]]:
                  "counting volume after it, and the truth."))
     plt.close(fig)
     if has_truth:
-        fig, axes = plt.subplots(1, 2, figsize=(11, 4), constrained_layout=True,
+        fig, axes = plt.subplots(1, 2, figsize=(11, 4),
                                  gridspec_kw={"width_ratios": [3, 1]})
         eb, ea = base["error_before"].values, base["error_after"].values
         axes[0].plot(ping, eb, "-", color="tab:orange", lw=1, label="before interferometry")
@@ -144,7 +150,7 @@ def report_figures(ds: xr.Dataset, outdir) -> list[tuple[str, Path, str]]:
         x = 0.5 * (edges[1:] + edges[:-1]) * sig
         width = np.diff(edges) * sig
         pdf = hist / (hist.sum() * width)
-        fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
+        fig, ax = plt.subplots(figsize=(7, 4))
         ax.bar(x, pdf, width=width, color="0.75", label="noise cells")
         xx = np.linspace(0, edges[-1] * sig, 400)
         ax.plot(xx, xx / sig**2 * np.exp(-xx**2 / (2 * sig**2)), "r-",
@@ -161,7 +167,7 @@ def report_figures(ds: xr.Dataset, outdir) -> list[tuple[str, Path, str]]:
     if ds.sizes["setting"] > 1:
         sw = ds.isel(setting=slice(1, None))
         v = sw["sweep_value"].values
-        fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
+        fig, ax = plt.subplots(figsize=(8, 4.5))
         if has_truth:
             ax.errorbar(v, sw["error_before_mean"], yerr=sw["error_before_std"], fmt="s-", ms=3,
                         color="tab:orange", capsize=2, label="before interferometry")
@@ -196,7 +202,7 @@ def report_figures(ds: xr.Dataset, outdir) -> list[tuple[str, Path, str]]:
                      caption))
         plt.close(fig)
     # density vs ping
-    fig, ax = plt.subplots(figsize=(9, 4), constrained_layout=True)
+    fig, ax = plt.subplots(figsize=(9, 4))
     if has_truth:
         ax.plot(ping, base["true_density_per_m3"], "k-", lw=1.3, label="true")
     ax.plot(ping, base["density_per_m3"], "-", color="tab:green", lw=1, label="counted (after interferometry)")
@@ -211,7 +217,7 @@ def report_figures(ds: xr.Dataset, outdir) -> list[tuple[str, Path, str]]:
     # target strength from echo integration
     sv = base["s_v_per_m"].values
     if np.isfinite(sv).any():
-        fig, ax = plt.subplots(figsize=(9, 4), constrained_layout=True)
+        fig, ax = plt.subplots(figsize=(9, 4))
         with np.errstate(divide="ignore", invalid="ignore"):
             ts_ping = 10 * np.log10(base["sigma_bs_m2"].values)
         ax.plot(ping, ts_ping, ".", color="tab:blue", label="per ping: s_v / counted density")

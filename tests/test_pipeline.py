@@ -16,7 +16,7 @@ from acoustics.scene import SceneWarning
 from processing.chain import detect_record
 from processing.detection import detect_all
 from processing.imaging import form_images
-from processing.products import _noise_band, pose_of, resolve_settings, volume_of
+from processing.products import noise_band_of, pose_of, resolve_settings, volume_of
 
 from .conftest import SCENES
 
@@ -33,7 +33,7 @@ def pelagic():
 def _all_at_once(tree):
     st = resolve_settings(tree)
     rec = processing.read_record(tree)
-    im = form_images(rec, st.image, noise_band_hz=_noise_band(tree))
+    im = form_images(rec, st.image, noise_band_hz=noise_band_of(tree))
     vol = volume_of(tree, st, image_range_m=(im.range_m[0], im.range_m[-1]))
     return detect_all(im, rec, st.detect, vol, upsample=im.interpolation, pose=pose_of(tree)), st, rec, vol
 
@@ -44,7 +44,7 @@ def test_chunked_detection_equals_processing_every_ping_at_once(pelagic, chunk, 
     noise fit sees exactly the same cells, so thresholds and detections are identical."""
     _, tree = pelagic
     ref, st, rec, vol = _all_at_once(tree)
-    det, _ = detect_record(rec, st, vol, noise_band_hz=_noise_band(tree), pose=pose_of(tree),
+    det, _ = detect_record(rec, st, vol, noise_band_hz=noise_band_of(tree), pose=pose_of(tree),
                            chunk_pings=chunk, workers=workers)
     assert det.noise.sigma == ref.noise.sigma
     np.testing.assert_array_equal(det.threshold_per_ping, ref.threshold_per_ping)
@@ -56,8 +56,8 @@ def test_chunked_detection_equals_processing_every_ping_at_once(pelagic, chunk, 
 def test_kept_images_are_those_of_the_chosen_pings(pelagic):
     _, tree = pelagic
     _, st, rec, vol = _all_at_once(tree)
-    full = form_images(rec, st.image, noise_band_hz=_noise_band(tree))
-    _, kept = detect_record(rec, st, vol, noise_band_hz=_noise_band(tree), chunk_pings=5,
+    full = form_images(rec, st.image, noise_band_hz=noise_band_of(tree))
+    _, kept = detect_record(rec, st, vol, noise_band_hz=noise_band_of(tree), chunk_pings=5,
                             keep_pings=[7, 0, 11])
     np.testing.assert_array_equal(kept.image, full.image[[7, 0, 11]])
 
@@ -152,3 +152,19 @@ def test_default_run_folder_stays_under_runs_whatever_the_scene_name(tmp_path):
         folder = default_run_folder(name)
         assert folder.parts[0] == "runs" and len(folder.parts) == 2
         assert ".." not in folder.parts and folder.name not in ("", ".", "..")
+
+
+def test_a_threshold_sweep_scores_each_setting_as_counting_alone_would(pelagic):
+    """evaluate() shares one pool of candidate peaks among settings that differ only in their
+    threshold; each setting must still get exactly what counting with it alone gives."""
+    from processing.evaluate import evaluate
+    _, tree = pelagic
+    tree = tree.isel(ping_time=slice(0, 4)) if hasattr(tree, "isel") else tree
+    base = resolve_settings(tree)
+    sweep = [base] + [base.model_copy(update={"detect": base.detect.model_copy(update={
+        "method": "fixed", "value": v})}) for v in (600.0, 900.0, 1500.0)]
+    ev = evaluate(tree, sweep)["per_ping"]
+    for i, st in enumerate(sweep):
+        counts = processing.counts_of(processing.count(tree, st))
+        for k in ("count_before", "count_after", "hits_after", "misses_after", "false_alarms_after"):
+            np.testing.assert_array_equal(ev[k][i], counts[k].values, err_msg=f"setting {i}: {k}")

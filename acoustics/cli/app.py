@@ -38,13 +38,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)   # --help and --version end here, before any heavy import
     from processing.config import ConfigError
     from processing.dataset import DatasetError
     from processing.noise import NoiseEstimateError
 
     from acoustics.cli.common import UsageError
-    parser = build_parser()
-    args = parser.parse_args(argv)
     warnings.showwarning = _show_warning
     try:
         return int(args.func(args) or 0)

@@ -32,11 +32,31 @@ def beam_numbers(scene) -> dict:
 
 
 def beam_figures(scene, outdir: Path) -> list[Path]:
-    """The beam-pattern figures of a scene's sonar (thesis Figs. 3.11, 3.15, 3.17)."""
+    """The beam-pattern figures of a scene's sonar (thesis Figs. 3.11, 3.15, 3.17).
+
+    They depend on the geometry alone, so the PNGs themselves are kept in the geometry cache
+    (:mod:`acoustics.sonar.cache`): a second run copies them instead of drawing them.
+    """
+    import tempfile
+
+    import numpy as np
+
     from acoustics.sonar.beam_table import beam_arrays, beam_cuts
-    from acoustics.sonar.plots import plot_beam_figures
+    from acoustics.sonar.cache import per_geometry
+    from acoustics.sonar.plots import BEAM_FIGURES, plot_beam_figures
+    from processing.atomic import write_bytes_atomic
     medium, f0, geometry = _geometry(scene)
-    return plot_beam_figures(beam_cuts(beam_arrays(geometry), medium=medium, frequency_hz=f0), outdir)
+
+    def draw():
+        with tempfile.TemporaryDirectory() as tmp:
+            paths = plot_beam_figures(beam_cuts(beam_arrays(geometry), medium=medium,
+                                                frequency_hz=f0), tmp)
+            return tuple(np.frombuffer(p.read_bytes(), np.uint8) for p in paths)
+    key = (tuple(sorted((geometry or {}).items())), float(medium.sound_speed_m_s), float(f0))
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    return [write_bytes_atomic(outdir / name, png.tobytes())
+            for name, png in zip(BEAM_FIGURES, per_geometry("beam_figures", key, draw))]
 
 
 def beams(scene, outdir: Path | None, as_json: bool) -> dict:

@@ -15,6 +15,8 @@ from pathlib import Path
 
 from acoustics.cli.common import Progress, UsageError, load, ping_list
 
+_T0 = __import__("time").perf_counter()   # the command's own clock starts at its import
+
 HELP = "the main job: simulate, image, detect, locate, count"
 
 
@@ -41,12 +43,18 @@ def default_run_folder(name: str) -> Path:
 
 
 def command(args) -> int:
+    import time
+
     import processing
     from acoustics.cli.beams import beam_numbers
     from acoustics.simulation.run import simulate
+    from acoustics.simulation.stages import StageLog
     from processing.atomic import staged, write_text_atomic
     from processing.dataset import write_tree
-    scene = load(args.scene)
+    log = StageLog()
+    log.add("start", time.perf_counter() - _T0)
+    with log.stage("load"):
+        scene = load(args.scene)
     outdir = Path(args.output) if args.output else default_run_folder(scene.name)
     if outdir.exists() and not args.overwrite:
         raise UsageError(f"{outdir} exists: choose another -o, or --overwrite to replace it")
@@ -55,10 +63,12 @@ def command(args) -> int:
     outdir.parent.mkdir(parents=True, exist_ok=True)
     print(f"scene '{scene.name}' ({args.scene}): {scene.pings.count} ping(s), "
           f"sha256 {scene.sha256()[:12]}")
-    tree = simulate(scene, pings=ping_list(scene, args.pings), progress=Progress("simulate"))
-    tree = processing.count(tree, images=args.images)
-    result = processing.count_summary(tree)
-    with staged(outdir) as tmp:
+    with log.stage("simulate"):
+        tree = simulate(scene, pings=ping_list(scene, args.pings), progress=Progress("simulate"))
+    with log.stage("process"):
+        tree = processing.count(tree, images=args.images)
+        result = processing.count_summary(tree)
+    with log.stage("write"), staged(outdir) as tmp:
         tmp.mkdir()
         write_tree(tree, tmp / "run.nc")
         processing.write_csv(tree, tmp / "detections.csv")
@@ -69,9 +79,11 @@ def command(args) -> int:
     print(processing.format_counts(result))
     made = "run.nc (dataset), detections.csv, counts.json, beams.json, scene.resolved.yaml"
     if args.plots:
-        _figures(scene, tree, outdir)
+        with log.stage("figures"):
+            _figures(scene, tree, outdir)
         made += ", images/, counts/, beams/"
     print(f"\noutputs in {outdir}/: {made}")
+    print(f"time: {log.summary()} (start: interpreter and imports)")
     return 0
 
 

@@ -4,8 +4,12 @@ from __future__ import annotations
 from pathlib import Path
 
 from processing.atomic import staged
+from processing.plots import fixed_layout
 
-__all__ = ["plot_beam_figures"]
+__all__ = ["plot_beam_figures", "BEAM_FIGURES"]
+
+#: the files :func:`plot_beam_figures` writes, in order
+BEAM_FIGURES = ("beams_transmitter.png", "beams_receiver.png", "beams_receiver_modes.png")
 
 
 def _figure(cuts, keys, labels, title, path, *, spans=None):
@@ -13,7 +17,8 @@ def _figure(cuts, keys, labels, title, path, *, spans=None):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    fixed_layout(fig, top=0.75, wspace=0.22)
     for ax, plane in zip(axes, ("azimuth", "elevation")):
         for key, label, style in zip(keys, labels, ("-", "--", ":")):
             deg, db = cuts[key][plane]
@@ -38,8 +43,7 @@ def plot_beam_figures(cuts: dict, outdir: str | Path) -> list[Path]:
     beams_receiver_modes.png (Fig. 3.17) into ``outdir``; return their paths."""
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
-    paths = [outdir / "beams_transmitter.png", outdir / "beams_receiver.png",
-             outdir / "beams_receiver_modes.png"]
+    paths = [outdir / name for name in BEAM_FIGURES]
     _figure(cuts, [("transmitter", "generic", "normal"), ("transmitter", "abacus", "normal")],
             ["generic transmitter", "ABACUS transmitter"],
             "Transmitter directivity, generic vs ABACUS (thesis Fig. 3.11)", paths[0],
