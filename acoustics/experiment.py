@@ -245,8 +245,8 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
         Default the scene's pings.
     sweep : Sweep, optional
     workers : int, optional
-        Local Dask workers (processes, one thread each); default every core; 0 runs in this
-        process without Dask.
+        Local Dask workers (processes); 0 runs in this process without Dask; default the
+        fastest layout for this machine (:func:`plan_workers`).
     scheduler : str, optional
         Address of an existing Dask scheduler (its workers need abacus installed).
     figure_pings : int
@@ -262,6 +262,7 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
         The results dataset.
     """
     out = Path(out_dir)
+    n_workers, threads = plan_workers(workers, scheduler)   # a bad count fails before any write
     out.mkdir(parents=True, exist_ok=True)
     pings = list(range(scene.pings.first, scene.pings.first + scene.pings.count)) if pings is None else list(pings)
     if not pings:
@@ -275,10 +276,6 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
     todo = [t for t in tasks if not (parts / f"{t[0]}.npz").exists()]
     texts = {j: p.scene.resolved_text() for j, p in enumerate(points)}
     source = str(scene.source_path) if scene.source_path else None
-    n_workers = (os.cpu_count() or 1) if workers is None else int(workers)
-    if n_workers < 0:
-        raise ExperimentError(f"--workers must be >= 0, got {workers}")
-    threads = 1 if (n_workers > 1 or scheduler) else (os.cpu_count() or 1)
     figs = set(pings[:max(0, figure_pings)])
     payloads = [{"id": tid, "scene_text": texts[j], "source": source, "ping": p, "threads": threads,
                  "settings": [points[i].settings.model_dump_json(by_alias=True) for i in idx],
@@ -287,7 +284,7 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
     done = len(tasks) - len(todo)
     if progress:
         progress(done, len(tasks))
-    for res in _execute(payloads, n_workers, scheduler):
+    for res in _execute(payloads, n_workers, scheduler, threads):
         save_part(parts, res)
         done += 1
         if progress:
@@ -301,6 +298,7 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
         "sweep_processing_only": int(sweep.processing_only) if sweep else 1,
         "settings_json": json.dumps([json.loads(p.settings.model_dump_json(by_alias=True)) for p in points]),
         "wall_seconds": wall, "workers": n_workers if not scheduler else -1,
+        "threads_per_task": threads,
         "scheduler": scheduler or ("local" if n_workers else "in-process"),
         "tasks_run": len(todo), "tasks_resumed": len(tasks) - len(todo)}
     ds = assemble_results(labels=[p.label for p in points], values=[p.value for p in points],
@@ -320,7 +318,50 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
     return path
 
 
-def _execute(payloads, n_workers, scheduler):
+#: on machines with at most this many usable cores the default runs in process: measured here
+#: (2 cores; docs/performance.md, "experiment") faster than a local cluster, which re-pays
+#: imports and kernel loading in every worker and splits cores that the in-process run's
+#: multi-threaded kernels already use
+AUTO_IN_PROCESS_MAX_CORES = 2
+
+
+def usable_cores() -> int:
+    """Cores this process may run on (its CPU affinity), at least 1."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def plan_workers(workers: int | None, scheduler: str | None = None):
+    """(local workers, threads per task) for an experiment.
+
+    ``workers=None`` (the default) picks the fastest layout for this machine: in process with
+    every core for the kernels up to :data:`AUTO_IN_PROCESS_MAX_CORES` cores, else a local
+    cluster of two-thread workers (cores / 2 of them). ``workers=0``: in process; ``k > 0``: k
+    workers sharing the cores. With a scheduler the workers are the cluster's, one thread a task.
+
+    Raises
+    ------
+    ExperimentError
+        A negative number of workers.
+    """
+    cores = usable_cores()
+    if scheduler:
+        return -1, 1
+    if workers is None:
+        if cores <= AUTO_IN_PROCESS_MAX_CORES:
+            return 0, cores
+        return cores // 2, 2
+    workers = int(workers)
+    if workers < 0:
+        raise ExperimentError(f"--workers must be >= 0, got {workers}")
+    if workers == 0:
+        return 0, cores
+    return workers, max(1, cores // workers)
+
+
+def _execute(payloads, n_workers, scheduler, threads=1):
     """Yield task results as they finish (in-process, a local cluster, or a scheduler)."""
     if not payloads:
         return
@@ -336,8 +377,13 @@ def _execute(payloads, n_workers, scheduler):
     if scheduler:
         client = Client(scheduler)
     else:
+        # one task at a time per worker; its kernels, FFTs and BLAS use the worker's share of
+        # the cores and no more (oversubscribed threads were 2–12x slower on small pings)
+        limit = str(threads)
         cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+                               dashboard_address=None, silence_logs=logging.ERROR,
+                               env={"OMP_NUM_THREADS": limit, "OPENBLAS_NUM_THREADS": limit,
+                                    "MKL_NUM_THREADS": limit, "NUMBA_NUM_THREADS": limit})
         client = Client(cluster)
     try:
         futures = [client.submit(run_task, p, key=f"abacus-{p['id']}-{hashlib.sha1(p['scene_text'].encode()).hexdigest()[:8]}",

@@ -28,7 +28,7 @@ import xarray as xr
 from .atomic import staged
 
 __all__ = ["DatasetError", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "TRUTH_GROUP",
-           "write_tree", "write_dataset", "open_tree", "complex_of", "split_complex", "SonarRecord",
+           "write_tree", "write_dataset", "open_tree", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
            "read_record"]
 
 FORMATS = ("netcdf", "zarr")
@@ -155,8 +155,9 @@ def split_complex(name: str, values, dims, attrs=None) -> dict:
     """``{name_r: DataArray, name_i: DataArray}`` float32 pair for a complex array."""
     v = np.asarray(values)
     attrs = dict(attrs or {})
-    return {f"{name}_r": xr.DataArray(v.real.astype(np.float32), dims=dims, attrs=attrs),
-            f"{name}_i": xr.DataArray(v.imag.astype(np.float32), dims=dims, attrs=attrs)}
+    # complex64 input: the pair are views of it (no copy); anything else is rounded to float32
+    return {f"{name}_r": xr.DataArray(v.real.astype(np.float32, copy=False), dims=dims, attrs=attrs),
+            f"{name}_i": xr.DataArray(v.imag.astype(np.float32, copy=False), dims=dims, attrs=attrs)}
 
 
 def complex_of(ds: xr.Dataset, name: str, *, where: str = "") -> np.ndarray:
@@ -168,6 +169,56 @@ def complex_of(ds: xr.Dataset, name: str, *, where: str = "") -> np.ndarray:
     return re.values.astype(np.float64) + 1j * im.values.astype(np.float64)
 
 
+class PairedSamples:
+    """Complex samples held as the dataset's real/imaginary pair, made complex128 only where
+    indexed: a record's samples are never copied whole (100 pings of ABACUS: 52 MB as float32
+    pairs, 105 MB more as complex128).
+
+    Indexing the ping axis with a slice (or an index array) gives another ``PairedSamples``
+    (views where numpy allows); any index that drops the ping axis gives a complex128 ndarray.
+    ``np.asarray(samples)`` materialises the whole complex128 array.
+
+    Attributes
+    ----------
+    real, imag : ndarray, shape (n_pings, n_channels, n_samples)
+        The pair, any real dtype (float32 in datasets), ADC counts.
+    """
+
+    def __init__(self, real, imag):
+        self.real = np.asarray(real)
+        self.imag = np.asarray(imag)
+        if self.real.shape != self.imag.shape:
+            raise ValueError(f"real and imaginary parts differ in shape: {self.real.shape} vs "
+                             f"{self.imag.shape}")
+
+    shape = property(lambda self: self.real.shape)
+    ndim = property(lambda self: self.real.ndim)
+    dtype = np.dtype(np.complex128)
+
+    def __len__(self):
+        return self.real.shape[0]
+
+    def __getitem__(self, index):
+        re, im = self.real[index], self.imag[index]
+        if re.ndim == self.real.ndim:
+            return PairedSamples(re, im)
+        return _pair_to_complex(re, im)
+
+    def __array__(self, dtype=None, copy=None):
+        out = _pair_to_complex(self.real, self.imag)
+        return out if dtype is None else out.astype(dtype)
+
+    def all_finite(self) -> bool:
+        """Whether every sample is finite (checked on the pair, without a complex copy)."""
+        return bool(np.all(np.isfinite(self.real)) and np.all(np.isfinite(self.imag)))
+
+
+def _pair_to_complex(re, im) -> np.ndarray:
+    out = np.empty(np.shape(re), np.complex128)
+    out.real, out.imag = re, im
+    return out
+
+
 # ------------------------------------------------------------- processing view
 @dataclass(frozen=True, eq=False)
 class SonarRecord:
@@ -175,8 +226,9 @@ class SonarRecord:
 
     Attributes
     ----------
-    samples : ndarray, shape (n_pings, n_channels, n_samples), complex128
-        Per-element complex baseband samples (ADC counts).
+    samples : PairedSamples or ndarray, shape (n_pings, n_channels, n_samples), complex
+        Per-element complex baseband samples (ADC counts); from a dataset a
+        :class:`PairedSamples` (complex128 where indexed, never copied whole).
     ping_index : ndarray of int, shape (n_pings,)
     rate_hz : float
         Sampling rate.
@@ -254,11 +306,16 @@ def read_record(tree: xr.DataTree, *, source: str = "") -> SonarRecord:
     except KeyError:
         raise DatasetError(f"{where}: missing group /{eg} (per-element samples)") from None
     ds = node.ds
-    samples = complex_of(ds, "element", where=f"{where}: /{eg}")
+    try:
+        samples = PairedSamples(ds["element_r"].values, ds["element_i"].values)
+    except KeyError:
+        raise DatasetError(f"{where}: /{eg}: missing variables element_r/element_i") from None
+    except ValueError as exc:
+        raise DatasetError(f"{where}: /{eg}/element_r/_i: {exc}") from None
     if samples.ndim != 3:
         raise DatasetError(f"{where}: /{eg}/element_r must have dims (ping_time, rx_element, "
                            f"range_sample), found {ds['element_r'].dims}")
-    if not np.all(np.isfinite(samples)):
+    if not samples.all_finite():
         raise DatasetError(f"{where}: /{eg}/element_r/_i contain NaN or inf samples")
     interval = float(_need(tree, eg, "sample_interval", where).values)
     if not interval > 0:

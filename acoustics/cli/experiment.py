@@ -18,8 +18,9 @@ def add_parser(sub):
     e.add_argument("--pings", type=int, help="number of pings (default: the scene's)")
     e.add_argument("--sweep", metavar="KEY=SPEC",
                    help="KEY=START:STOP:STEP or KEY=V1,V2,...; KEY a dotted scene path or 'threshold'")
-    e.add_argument("--workers", type=int, help="local Dask worker processes (default: every core; "
-                   "0: in this process)")
+    e.add_argument("--workers", type=int, help="local Dask worker processes; 0: in this process "
+                   "(default: the fastest for this machine: in process up to 2 cores, else a local "
+                   "cluster of 2-thread workers)")
     e.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://host:8786")
     e.add_argument("--format", choices=["netcdf", "zarr"], help="results format (default netcdf)")
     e.add_argument("--restart", action="store_true", help="discard finished pings of an earlier run in DIR")
