@@ -209,25 +209,64 @@ def _figure_bytes(tree, settings, ping) -> bytes:
 
 
 def _manifest(points, sweep) -> dict:
-    return {"version": RESULTS_VERSION,
-            "scene_sha256": [p.scene.sha256() for p in points],
-            "settings": [p.settings.model_dump_json(by_alias=True) for p in points],
-            "sweep": sweep.text if sweep else None}
+    man = {"version": RESULTS_VERSION,
+           "scene_sha256": [p.scene.sha256() for p in points],
+           "settings": [p.settings.model_dump_json(by_alias=True) for p in points],
+           "sweep": sweep.text if sweep else None}
+    man["experiment"] = hashlib.sha256(json.dumps(man, sort_keys=True).encode()).hexdigest()
+    return man
 
 
-def _check_manifest(out: Path, man: dict, restart: bool):
+#: what an experiment folder may hold besides the manifest and the parts (its own outputs)
+_OWN = {"experiment.json", PARTS, "results.nc", "results.zarr", "report.html", "figures"}
+
+
+def _check_folder(out: Path, man: dict, restart: bool):
+    """The output folder is empty, or holds this experiment (resume), or — with ``restart`` —
+    an earlier run of an experiment to discard. Parts carry the experiment's identity, so a
+    folder of another experiment is refused even when its manifest is gone or damaged."""
+    if out.exists() and not out.is_dir():
+        raise ExperimentError(f"-o {out}: is a file, expected a folder")
+    if not out.exists():
+        if not out.parent.exists():
+            raise ExperimentError(f"-o {out}: the folder {out.parent} does not exist (create it first)")
+        return
+    from processing.atomic import TMP_MARK
+    others = sorted(p.name for p in out.iterdir() if p.name not in _OWN and TMP_MARK not in p.name
+                    and not p.name.startswith(".experiment.json") and not p.name.startswith(f".{PARTS}"))
+    if others:
+        raise ExperimentError(f"-o {out}: holds files that are not an experiment's ({', '.join(others[:3])}"
+                              f"{', ...' if len(others) > 3 else ''}): choose an empty or new folder")
+    if restart:
+        return
     path = out / "experiment.json"
+    try:
+        old = json.loads(path.read_text()) if path.exists() else None
+    except (OSError, ValueError):
+        old = None          # damaged: the parts say whose they are
+    if isinstance(old, dict) and old.get("experiment") not in (None, man["experiment"]):
+        raise ExperimentError(f"{out} holds another experiment (different scene, settings or sweep): "
+                              f"choose another -o, or --restart to discard it")
     parts = out / PARTS
-    if restart and parts.exists():
-        shutil.rmtree(parts)
-    if path.exists() and parts.exists():
-        old = json.loads(path.read_text())
-        if {k: old.get(k) for k in man} != man:
-            raise ExperimentError(
-                f"{out} holds the parts of another experiment (different scene, settings or "
-                f"sweep): choose another -o, or --restart to discard them")
-    parts.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(path, json.dumps(man, indent=1))
+    if parts.is_dir():
+        from processing.results import part_state
+        for f in sorted(parts.glob("*.npz"))[:20]:   # a sample is enough to tell whose they are
+            if part_state(f, man["experiment"]) == "foreign":
+                raise ExperimentError(f"{out} holds parts of another experiment ({f.name}): choose "
+                                      f"another -o, or --restart to discard them")
+
+
+def _start_folder(out: Path, man: dict, restart: bool):
+    """Create or reset the folder and write the manifest (after every check has passed)."""
+    from processing.atomic import remove_path, remove_stale
+    if restart:
+        for name in _OWN:
+            remove_path(out / name)
+    out.mkdir(exist_ok=True)
+    (out / PARTS).mkdir(exist_ok=True)
+    remove_stale(out / PARTS)
+    remove_stale(out)
+    write_text_atomic(out / "experiment.json", json.dumps(man, indent=1))
 
 
 # ------------------------------------------------------------------ running
@@ -263,17 +302,21 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
     """
     out = Path(out_dir)
     n_workers, threads = plan_workers(workers, scheduler)   # a bad count fails before any write
-    out.mkdir(parents=True, exist_ok=True)
     pings = list(range(scene.pings.first, scene.pings.first + scene.pings.count)) if pings is None else list(pings)
     if not pings:
         raise ExperimentError("an experiment needs at least one ping")
     if fmt not in ("netcdf", "zarr"):
         raise ExperimentError(f"format must be netcdf or zarr, got {fmt!r}")
     points = experiment_plan(scene, sweep)
-    _check_manifest(out, _manifest(points, sweep), restart)
+    man = _manifest(points, sweep)
+    _check_folder(out, man, restart)
+    _start_folder(out, man, restart)
     parts = out / PARTS
     tasks = _tasks(points, pings, sweep)
-    todo = [t for t in tasks if not (parts / f"{t[0]}.npz").exists()]
+    from processing.results import part_state
+    states = {t[0]: part_state(parts / f"{t[0]}.npz", man["experiment"]) for t in tasks}
+    todo = [t for t in tasks if states[t[0]] != "ok"]
+    damaged = sum(s == "damaged" for s in states.values())
     texts = {j: p.scene.resolved_text() for j, p in enumerate(points)}
     source = str(scene.source_path) if scene.source_path else None
     figs = set(pings[:max(0, figure_pings)])
@@ -285,7 +328,7 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
     if progress:
         progress(done, len(tasks))
     for res in _execute(payloads, n_workers, scheduler, threads):
-        save_part(parts, res)
+        save_part(parts, res, experiment=man["experiment"])
         done += 1
         if progress:
             progress(done, len(tasks))
@@ -300,14 +343,16 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
         "wall_seconds": wall, "workers": n_workers if not scheduler else -1,
         "threads_per_task": threads,
         "scheduler": scheduler or ("local" if n_workers else "in-process"),
-        "tasks_run": len(todo), "tasks_resumed": len(tasks) - len(todo)}
+        "tasks_run": len(todo), "tasks_resumed": len(tasks) - len(todo),
+        "parts_recomputed_damaged": damaged}
     ds = assemble_results(labels=[p.label for p in points], values=[p.value for p in points],
-                          pings=pings, tasks=tasks, parts=parts, attrs=attrs)
+                          pings=pings, tasks=tasks, parts=parts, attrs=attrs,
+                          experiment=man["experiment"])
     figdir = out / "figures"
     figdir.mkdir(exist_ok=True)
     for tid, j, p, _ in tasks:
         if j == 0 and p in figs:
-            fig = load_part(parts / f"{tid}.npz")["figure"]
+            fig = load_part(parts / f"{tid}.npz", experiment=man["experiment"])["figure"]
             if fig:
                 write_bytes_atomic(figdir / f"detections_ping{p}.png", fig)
     path = out / ("results.zarr" if fmt == "zarr" else "results.nc")

@@ -8,7 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["FIXED", "STREAMS", "ping_rng"]
+__all__ = ["FIXED", "STREAMS", "SEED_MAX", "ping_rng"]
+
+#: the largest scene seed: seeds are stored as signed 64-bit integers in every dataset
+SEED_MAX = 2**63 - 1
 
 #: stands for the ping index in the seed of draws that do not change between pings
 FIXED = 2**31 - 1

@@ -27,6 +27,7 @@ from pydantic import (BaseModel, BeforeValidator, ConfigDict, Field, PlainSerial
 
 __all__ = ["ConfigError", "ConfigWarning", "ConfigModel", "Real", "PositiveReal",
            "NonNegativeReal", "Count", "PositiveCount", "Vec3", "AngleDeg", "AngleRangeDeg", "read_yaml",
+           "parse_yaml", "MAX_YAML_BYTES", "MAX_YAML_DEPTH",
            "validate_file", "format_key_path", "dump_yaml"]
 
 
@@ -151,7 +152,7 @@ def _walk_nodes(node, path: tuple, marks: dict, file: str):
             if not isinstance(key_node, yaml.ScalarNode) or key_node.tag != "tag:yaml.org,2002:str":
                 line = key_node.start_mark.line + 1
                 raise ConfigError(
-                    f"{file}:{line}: {format_key_path(path)}: key {key_node.value!r} is not a "
+                    f"{file}:{line}: {format_key_path(path)}: key {_short(key_node.value)} is not a "
                     f"plain string; keys are names such as 'width_m' (quote keys like 'on' or "
                     f"'yes' that YAML would read as booleans)")
             key = key_node.value
@@ -168,41 +169,110 @@ def _walk_nodes(node, path: tuple, marks: dict, file: str):
             _walk_nodes(item, path + (i,), marks, file)
 
 
-def read_yaml(path: str | Path) -> tuple[Any, dict[tuple, int]]:
-    """Read a YAML file into plain Python data and a map key path -> line number.
+#: the largest configuration file read (bytes): scene files are a few kB
+MAX_YAML_BYTES = 1 << 20
+#: the deepest nesting of mappings and sequences accepted (a scene nests about 6 deep)
+MAX_YAML_DEPTH = 32
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """PyYAML's safe loader without anchors and aliases, and with a bounded depth.
+
+    Aliases are what "billion laughs" documents are made of (a few lines that expand to
+    gigabytes), and a self-referencing alias builds a cyclic structure; configuration files
+    have no need of either. Deep nesting would end in a RecursionError."""
+
+    def __init__(self, stream):
+        super().__init__(stream)
+        self._depth = 0
+
+    def compose_node(self, parent, index):
+        event = self.peek_event()
+        if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None) is not None:
+            raise yaml.constructor.ConstructorError(
+                None, None, "anchors and aliases (&name, *name) are not accepted in configuration "
+                "files: write the values out", event.start_mark)
+        self._depth += 1
+        try:
+            if self._depth > MAX_YAML_DEPTH:
+                raise yaml.composer.ComposerError(
+                    None, None, f"nested more than {MAX_YAML_DEPTH} levels deep", event.start_mark)
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+
+def parse_yaml(text: str, *, source: str = "<text>") -> tuple[Any, dict[tuple, int]]:
+    """YAML text into plain Python data and a map key path -> line number, safely (no
+    anchors or aliases, bounded size and depth, safe tags only).
 
     Raises
     ------
     ConfigError
-        unreadable file, YAML syntax error, duplicate keys, non-string keys.
+        Too large, a YAML syntax error, an alias, too deep, duplicate or non-string keys; the
+        message names ``source`` and the line.
+    """
+    if len(text) > MAX_YAML_BYTES:
+        raise ConfigError(f"{source}: {len(text):,} characters; configuration files are at most "
+                          f"{MAX_YAML_BYTES:,}")
+    loader = _StrictLoader(text)
+    try:
+        node = loader.get_single_node()
+        marks: dict[tuple, int] = {}
+        if node is None:
+            return None, marks
+        _walk_nodes(node, (), marks, source)
+        data = loader.construct_document(node)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"{source}:{mark.line + 1}:{mark.column + 1}" if mark else source
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        context = getattr(exc, "context", None)
+        detail = f"{problem} ({context})" if context else problem
+        kind = "YAML syntax error" if isinstance(exc, (yaml.scanner.ScannerError,
+                                                        yaml.parser.ParserError)) else "YAML error"
+        raise ConfigError(f"{where}: {kind}: {detail}") from None
+    except RecursionError:  # pragma: no cover - the depth bound comes first
+        raise ConfigError(f"{source}: nested too deeply") from None
+    finally:
+        loader.dispose()
+    return data, marks
+
+
+def read_yaml(path: str | Path) -> tuple[Any, dict[tuple, int]]:
+    """Read a YAML file into plain Python data and a map key path -> line number.
+
+    Only regular files of at most :data:`MAX_YAML_BYTES` are read (never a device, a pipe or a
+    folder); see :func:`parse_yaml` for what the text may hold.
+
+    Raises
+    ------
+    ConfigError
+        unreadable file, too large, YAML syntax error, anchors or aliases, too deep, duplicate
+        keys, non-string keys.
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        st = path.stat()
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise ConfigError(f"{path}: is a directory, expected a YAML file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"{path}: cannot be read ({exc.__class__.__name__}: {exc})") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot be read ({exc.strerror or exc.__class__.__name__})") from None
+    if path.is_dir():
+        raise ConfigError(f"{path}: is a directory, expected a YAML file")
+    if not path.is_file():
+        raise ConfigError(f"{path}: not a regular file (a device or a pipe); expected a YAML file")
+    if st.st_size > MAX_YAML_BYTES:
+        raise ConfigError(f"{path}: {st.st_size:,} bytes; configuration files are at most "
+                          f"{MAX_YAML_BYTES:,} bytes")
     try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"{path}:{mark.line + 1}:{mark.column + 1}" if mark else str(path)
-        problem = getattr(exc, "problem", None) or str(exc)
-        context = getattr(exc, "context", None)
-        detail = f"{problem} ({context})" if context else problem
-        raise ConfigError(f"{where}: YAML syntax error: {detail}") from None
-    marks: dict[tuple, int] = {}
-    if node is None:
-        return None, marks
-    _walk_nodes(node, (), marks, str(path))
-    try:
-        data = yaml.load(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as exc:  # pragma: no cover - compose already parsed it
-        raise ConfigError(f"{path}: YAML error: {exc}") from None
-    return data, marks
+        with open(path, encoding="utf-8") as fh:
+            text = fh.read(MAX_YAML_BYTES + 1)
+    except UnicodeDecodeError:
+        raise ConfigError(f"{path}: not a text file (not UTF-8); expected YAML") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot be read ({exc.strerror or exc.__class__.__name__})") from None
+    return parse_yaml(text, source=str(path))
 
 
 def dump_yaml(data: Any) -> str:

@@ -27,8 +27,8 @@ import xarray as xr
 
 from .atomic import staged
 
-__all__ = ["DatasetError", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "TRUTH_GROUP",
-           "write_tree", "write_dataset", "open_tree", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
+__all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "TRUTH_GROUP",
+           "write_tree", "write_dataset", "open_tree", "tree_pings", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
            "read_record"]
 
 FORMATS = ("netcdf", "zarr")
@@ -39,6 +39,10 @@ TRUTH_GROUP = "Simulation/Ground_truth"
 
 class DatasetError(ValueError):
     """A dataset that does not follow the contract; the message names file, group, variable."""
+
+
+class DatasetWarning(UserWarning):
+    """A dataset that can be processed, but not as its attributes say (named in the message)."""
 
 
 # ------------------------------------------------------------------------- I/O
@@ -127,28 +131,64 @@ def write_dataset(ds: xr.Dataset, path: str | Path, *, fmt: str | None = None,
     return path
 
 
-def open_tree(path: str | Path) -> xr.DataTree:
-    """Open a dataset written by :func:`write_tree` (or any SONAR-netCDF4-like file) fully in memory.
+def open_tree(path: str | Path, *, max_memory_gb: float | None = None,
+              work_factor: float = 1.0) -> xr.DataTree:
+    """Open a dataset written by :func:`write_tree` (or any SONAR-netCDF4-like file) in memory.
+
+    The file is opened lazily first: its size in memory, times ``work_factor`` (what the caller
+    will make of it, e.g. images), must fit the memory limit
+    (:func:`processing.resources.memory_limit_bytes`) before anything is loaded.
 
     Raises
     ------
     DatasetError
-        Missing or unreadable file, with the reason.
+        Missing, unreadable or damaged file, with the reason.
+    processing.resources.ResourceError
+        Too large for the memory limit.
     """
+    from .resources import Estimate, check_resources
     path = Path(path)
     if not path.exists():
         raise DatasetError(f"{path}: no such file or folder")
+    if not path.is_dir() and not path.is_file():
+        raise DatasetError(f"{path}: not a regular file (a device or a pipe); expected NetCDF4 or Zarr")
     try:
         if path.is_dir():
             tree = xr.open_datatree(path, engine="zarr", consolidated=False)
         else:
             tree = xr.open_datatree(path, engine="netcdf4")
-        return tree.load()
-    except DatasetError:
-        raise
     except Exception as exc:  # a foreign or damaged file: say so in one line
         raise DatasetError(f"{path}: cannot be read as a NetCDF4/Zarr dataset "
-                           f"({exc.__class__.__name__}: {exc})") from None
+                           f"({exc.__class__.__name__}: {_first_line(exc)})") from None
+    try:
+        size = float(sum(v.nbytes for node in tree.subtree for v in node.ds.variables.values()))
+        check_resources(Estimate(size * (1.0 + work_factor), 0.0, [("dataset", size)],
+                                 keys="the pings in the file (process it in parts)"),
+                        what=f"{path}", max_memory_gb=max_memory_gb)
+        return tree.load()
+    except (DatasetError, ValueError) as exc:
+        if exc.__class__.__name__ == "ResourceError" or isinstance(exc, DatasetError):
+            raise
+        raise DatasetError(f"{path}: damaged or truncated ({exc.__class__.__name__}: "
+                           f"{_first_line(exc)})") from None
+    except Exception as exc:
+        raise DatasetError(f"{path}: damaged or truncated ({exc.__class__.__name__}: "
+                           f"{_first_line(exc)})") from None
+    finally:
+        tree.close()
+
+
+def _first_line(exc) -> str:
+    text = str(exc).strip().splitlines()
+    return (text[0][:200] if text else "")
+
+
+def tree_pings(tree: xr.DataTree) -> int:
+    """Pings in a dataset's per-element samples (0 when it has none)."""
+    try:
+        return int(tree[ELEMENT_GROUP].ds.sizes.get("ping_time", 0))
+    except KeyError:
+        return 0
 
 
 def split_complex(name: str, values, dims, attrs=None) -> dict:
@@ -336,6 +376,16 @@ def read_record(tree: xr.DataTree, *, source: str = "") -> SonarRecord:
     if mode not in ("interferometric", "normal", "combined"):
         raise DatasetError(f"{where}: /{eg} attribute mode={mode!r}; accepted: interferometric, "
                            f"normal, combined")
+    present = set(sub.tolist())
+    if mode in ("interferometric", "combined") and not {"A", "B"} <= present:
+        # interferometry needs both subarrays: say so, and image what is there
+        import warnings
+        warnings.warn(f"{where}: /{eg} says mode={mode!r} but holds only subarray(s) "
+                      f"{', '.join(sorted(present))}: imaged in normal mode; no elevation, so no "
+                      f"counts after interferometry", DatasetWarning, stacklevel=2)
+        mode = "normal"
+    if samples.shape[0] == 0:
+        raise DatasetError(f"{where}: /{eg} holds no pings")
     ping = (ds["ping_index"].values.astype(int) if "ping_index" in ds.variables
             else np.arange(samples.shape[0]))
     return SonarRecord(samples, ping, 1.0 / interval, offset, replica, f0, bw, c, pos, sub,

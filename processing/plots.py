@@ -163,15 +163,19 @@ def save(fig, path: Path):
     return path
 
 
-def image_figures(images: dict, outdir: Path, *, ping: int = 0) -> list[Path]:
-    """fan_beam.png, image.png (I(r, θ)), range_profiles.png and phase.png for one ping."""
+def image_figures(images, outdir: Path, *, ping: int = 0) -> list[Path]:
+    """fan_beam.png, image.png (I(r, θ)), range_profiles.png and phase.png for one ping.
+
+    ``images``: an :class:`~processing.imaging.Images` of that ping alone (titles say ``ping``)
+    or of every ping (``ping`` picks one)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
-    img = images.image[ping]
+    # images of just this ping (processing.products.figure_images), or of every ping
+    img = images.image[0 if images.image.shape[0] == 1 else ping]
     groups = images.groups
     r, th = images.range_m, images.beam_angle_rad
     paths = []
@@ -201,7 +205,7 @@ def image_figures(images: dict, outdir: Path, *, ping: int = 0) -> list[Path]:
     if images.psi_rad is not None:
         fig, ax = plt.subplots(figsize=(6.5, 6))
         fixed_layout(fig, left=0.7, right=0.1)
-        plot_phase_map(ax, images.psi_rad[ping], np.abs(img[0]), r, th)
+        plot_phase_map(ax, images.psi_rad[0 if images.image.shape[0] == 1 else ping], np.abs(img[0]), r, th)
         ax.set_title(f"interferometric phase ψ_AB, ping {ping}")
         paths.append(save(fig, outdir / "phase.png"))
         plt.close(fig)

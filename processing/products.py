@@ -13,10 +13,9 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
-import yaml
 
 from .atomic import staged
-from .config import ConfigError, dump_yaml, validate_file
+from .config import ConfigError, dump_yaml, parse_yaml, validate_file
 from .dataset import ELEMENT_GROUP, DatasetError, complex_of, read_record, split_complex
 from .chain import record_pings
 from .imaging import Images, form_images
@@ -26,6 +25,9 @@ __all__ = ["PROCESSING_GROUP", "resolve_settings", "image", "images_of", "figure
            "volume_of", "detections_of", "counts_of", "write_csv", "count_summary", "format_counts"]
 
 PROCESSING_GROUP = "Processing"
+#: what only interferometry (the elevation) gives: NaN in normal and combined mode
+AFTER_KEYS = ("count_after", "density_per_m3", "error_after", "hits_after", "misses_after",
+              "false_alarms_after", "shared_cell_misses")
 DETECTIONS_GROUP = "Processing/Detections"
 COUNTS_GROUP = "Processing/Counts"
 
@@ -46,7 +48,8 @@ def resolve_settings(tree: xr.DataTree | None, settings=None) -> ProcessingSetti
     if tree is not None and "Provenance" in tree.children:
         text = tree["Provenance"].ds.attrs.get("scene_text", "")
         if text:
-            section = (yaml.safe_load(text) or {}).get("processing")
+            data, _ = parse_yaml(text, source="/Provenance scene_text")
+            section = data.get("processing") if isinstance(data, dict) else None
             if section is not None:
                 try:
                     return validate_file(ProcessingSettings, section,
@@ -180,7 +183,8 @@ def images_of(tree: xr.DataTree) -> Images:
                            "processing.image, or `abacus run --images native`")
     settings = ImageSettings()
     if "settings_yaml" in ds.attrs:
-        section = (yaml.safe_load(ds.attrs["settings_yaml"]) or {}).get("image", {})
+        data, _ = parse_yaml(str(ds.attrs["settings_yaml"]), source="/Processing settings_yaml")
+        section = data.get("image", {}) if isinstance(data, dict) else {}
         settings = validate_file(ImageSettings, section, file="/Processing settings_yaml (image)")
     if ds.attrs.get("image_storage") == "native":
         settings = settings.model_copy(update={"interpolation": 1})
@@ -216,7 +220,8 @@ def figure_images(tree: xr.DataTree, pings, settings=None) -> Images:
     if settings is None and pds is not None and "Detections" in tree[PROCESSING_GROUP].children:
         text = tree[DETECTIONS_GROUP].ds.attrs.get("settings_yaml")
         if text:
-            settings = validate_file(ProcessingSettings, yaml.safe_load(text) or {},
+            data, _ = parse_yaml(str(text), source="/Processing/Detections settings_yaml")
+            settings = validate_file(ProcessingSettings, data or {},
                                      file="/Processing/Detections settings_yaml")
     st = resolve_settings(tree, settings)
     rec = _record(tree)
@@ -449,6 +454,13 @@ def count(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.DataT
                     dr=float(da["range_resolution_m"]),
                     dtheta=float(da["azimuth_resolution_rad"]), gate=st.count.gate_cells,
                     unresolved=st.count.unresolved_cells)
+    interferometric = bool(tree[PROCESSING_GROUP].ds.attrs.get("interferometric", 1))
+    if not interferometric:
+        # no elevation, so nothing is located in 3-D: "after interferometry" does not exist
+        # (NaN, not a count of 0 that reads like an empty volume)
+        for k in AFTER_KEYS:
+            if k in res:
+                res[k] = np.full(len(ping_index), np.nan)
     ds = xr.Dataset({k: xr.DataArray(v, dims="ping_time") for k, v in res.items()},
                     coords={"ping_time": eg["ping_time"].values,
                             "ping_index": ("ping_time", np.asarray(ping_index))},
@@ -512,12 +524,15 @@ def count_summary(tree: xr.DataTree) -> dict:
         for k, v in c.items():
             if k in ("ping_index", "volume_m3"):
                 continue
-            row[k] = float(v[i]) if k.endswith("per_m3") else int(v[i])
+            x = float(v[i])
+            row[k] = None if not np.isfinite(x) else (x if k.endswith("per_m3") else int(x))
         per.append(row)
 
     def stats(key):
         v = np.asarray(c[key], float)
-        return {"mean": float(v.mean()) if n else 0.0, "std": float(v.std()) if n else 0.0}
+        if not n or not np.isfinite(v).any():
+            return {"mean": None, "std": None} if n else {"mean": 0.0, "std": 0.0}
+        return {"mean": float(v.mean()), "std": float(v.std())}
 
     summary = {"pings": n, "counting_volume_m3": c["volume_m3"]}
     for key in ("count_before", "count_after", "density_per_m3", "true_in_volume",
@@ -525,11 +540,18 @@ def count_summary(tree: xr.DataTree) -> dict:
         if key in c:
             summary[key] = stats(key)
     if "error_after" in c:
-        summary["mean_abs_error_before"] = float(np.mean(np.abs(c["error_before"]))) if n else 0.0
-        summary["mean_abs_error_after"] = float(np.mean(np.abs(c["error_after"]))) if n else 0.0
+        def mean_abs(k):
+            v = np.asarray(c[k], float)
+            return float(np.mean(np.abs(v))) if n and np.isfinite(v).all() else None
+
+        def total(k):
+            v = np.asarray(c[k], float)
+            return int(np.sum(v)) if np.isfinite(v).all() else None
+        summary["mean_abs_error_before"] = mean_abs("error_before")
+        summary["mean_abs_error_after"] = mean_abs("error_after")
         for k in ("hits_after", "misses_after", "false_alarms_after", "shared_cell_misses",
                   "hits_before", "misses_before", "false_alarms_before"):
-            summary[f"total_{k}"] = int(np.sum(c[k]))
+            summary[f"total_{k}"] = total(k)
     det = tree[DETECTIONS_GROUP].ds.attrs
     summary["detection"] = {"method": det["method"], "convention": det["convention"],
                             "n_cells_tested": int(det["n_cells_tested"]),
@@ -539,8 +561,14 @@ def count_summary(tree: xr.DataTree) -> dict:
     return {"pings": per, "summary": summary}
 
 
+def _f(v, spec: str) -> str:
+    """A number in a format, or '–' where it does not exist (None)."""
+    return "–" if v is None else format(v, spec)
+
+
 def format_counts(result: dict) -> str:
-    """Fixed-width per-ping table and summary of :func:`count_summary`."""
+    """Fixed-width per-ping table and summary of :func:`count_summary` ('–': no value, e.g.
+    counts after interferometry of a dataset without it)."""
     per, s = result["pings"], result["summary"]
     truth = "error_after" in s
     head = f"{'ping':>5} {'before':>7} {'after':>6} {'density':>9}"
@@ -548,11 +576,12 @@ def format_counts(result: dict) -> str:
         head += f" {'true':>5} {'err_bef':>8} {'err_aft':>8} {'hits':>5} {'miss':>5} {'FA':>4}"
     lines = [head]
     for r in per:
-        line = (f"{r['ping_index']:>5} {r['count_before']:>7} {r['count_after']:>6} "
-                f"{r['density_per_m3']:>9.4f}")
+        line = (f"{r['ping_index']:>5} {r['count_before']:>7} {_f(r['count_after'], '>6')} "
+                f"{_f(r['density_per_m3'], '>9.4f')}")
         if truth:
-            line += (f" {r['true_in_volume']:>5} {r['error_before']:>+8d} {r['error_after']:>+8d} "
-                     f"{r['hits_after']:>5} {r['misses_after']:>5} {r['false_alarms_after']:>4}")
+            line += (f" {r['true_in_volume']:>5} {r['error_before']:>+8d} {_f(r['error_after'], '>+8d')} "
+                     f"{_f(r['hits_after'], '>5')} {_f(r['misses_after'], '>5')} "
+                     f"{_f(r['false_alarms_after'], '>4')}")
         lines.append(line)
     d = s["detection"]
     lines.append("")
@@ -560,16 +589,24 @@ def format_counts(result: dict) -> str:
                  f"{d['method']} ({d['convention']}), median {d['threshold_median']:.4g} counts, "
                  f"{d['n_cells_tested']} cells tested, P_fa,cell {d['pfa_cell']:.3g}")
     lines.append(f"noise: {d['noise']}")
-    lines.append(f"counted per ping: {s['count_after']['mean']:.2f} ± {s['count_after']['std']:.2f} "
-                 f"inside the volume (density {s['density_per_m3']['mean']:.4f} ± "
-                 f"{s['density_per_m3']['std']:.4f} m⁻³); {s['count_before']['mean']:.2f} in the span")
+    if s["count_after"]["mean"] is None:
+        lines.append(f"counted per ping: {s['count_before']['mean']:.2f} in the span; no counts inside "
+                     f"the volume (no interferometry, so no elevation)")
+    else:
+        lines.append(f"counted per ping: {s['count_after']['mean']:.2f} ± {s['count_after']['std']:.2f} "
+                     f"inside the volume (density {s['density_per_m3']['mean']:.4f} ± "
+                     f"{s['density_per_m3']['std']:.4f} m⁻³); {s['count_before']['mean']:.2f} in the span")
     if truth:
         lines.append(f"truth per ping: {s['true_in_volume']['mean']:.2f} in the volume (density "
                      f"{s['true_density_per_m3']['mean']:.4f} m⁻³)")
-        lines.append(f"count error before interferometry: {s['error_before']['mean']:+.2f} ± "
-                     f"{s['error_before']['std']:.2f}; after: {s['error_after']['mean']:+.2f} ± "
-                     f"{s['error_after']['std']:.2f} (mean |error| {s['mean_abs_error_after']:.2f})")
-        lines.append(f"after interferometry: {s['total_hits_after']} hits, {s['total_misses_after']} "
-                     f"misses ({s['total_shared_cell_misses']} sharing a resolution cell with another "
-                     f"target), {s['total_false_alarms_after']} false alarms")
+        if s["error_after"]["mean"] is None:
+            lines.append(f"count error before interferometry: {s['error_before']['mean']:+.2f} ± "
+                         f"{s['error_before']['std']:.2f}; none after (no interferometry)")
+        else:
+            lines.append(f"count error before interferometry: {s['error_before']['mean']:+.2f} ± "
+                         f"{s['error_before']['std']:.2f}; after: {s['error_after']['mean']:+.2f} ± "
+                         f"{s['error_after']['std']:.2f} (mean |error| {s['mean_abs_error_after']:.2f})")
+            lines.append(f"after interferometry: {s['total_hits_after']} hits, {s['total_misses_after']} "
+                         f"misses ({s['total_shared_cell_misses']} sharing a resolution cell with "
+                         f"another target), {s['total_false_alarms_after']} false alarms")
     return "\n".join(lines)

@@ -8,6 +8,7 @@ orchestration (what to run, where) lives in :mod:`acoustics.experiment`.
 """
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 from pathlib import Path
@@ -18,29 +19,81 @@ import xarray as xr
 from .atomic import write_bytes_atomic
 from .evaluate import NOISE_BINS, PER_PING_KEYS
 
-__all__ = ["save_part", "load_part", "assemble_results"]
+__all__ = ["save_part", "load_part", "part_state", "PartError", "assemble_results"]
 
 
-def save_part(parts: Path, res: dict) -> Path:
-    """Write one task's result (``res`` from the task runner) as ``parts/<id>.npz``, atomically."""
+class PartError(ValueError):
+    """A part that cannot be used: damaged (recompute it) or of another experiment."""
+
+
+def _digest(arrays: dict) -> str:
+    h = hashlib.sha256()
+    for k in sorted(arrays):
+        a = np.ascontiguousarray(arrays[k])
+        h.update(k.encode())
+        h.update(str(a.dtype).encode())
+        h.update(str(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def save_part(parts: Path, res: dict, *, experiment: str = "") -> Path:
+    """Write one task's result (``res`` from the task runner) as ``parts/<id>.npz``, atomically,
+    with the experiment's identity (a hash of its scenes, settings and sweep) and a checksum of
+    its contents."""
+    arrays = {f"pp_{k}": np.asarray(v) for k, v in res["per_ping"].items()}
+    arrays.update(noise_histogram=np.asarray(res["noise_histogram"]),
+                  seconds=np.asarray(res["seconds"]),
+                  stage_seconds=np.asarray(json.dumps(res["stage_seconds"])),
+                  notes=np.asarray(json.dumps(res["notes"])),
+                  figure=np.frombuffer(res["figure"], np.uint8),
+                  experiment=np.asarray(experiment))
     buf = io.BytesIO()
-    arrays = {f"pp_{k}": v for k, v in res["per_ping"].items()}
-    np.savez(buf, noise_histogram=res["noise_histogram"], seconds=res["seconds"],
-             stage_seconds=json.dumps(res["stage_seconds"]), notes=json.dumps(res["notes"]),
-             figure=np.frombuffer(res["figure"], np.uint8), **arrays)
+    np.savez(buf, checksum=np.asarray(_digest(arrays)), **arrays)
     return write_bytes_atomic(Path(parts) / f"{res['id']}.npz", buf.getvalue())
 
 
-def load_part(path: Path) -> dict:
-    """One part as written by :func:`save_part`."""
-    with np.load(path) as z:
-        return {"per_ping": {k[3:]: z[k] for k in z.files if k.startswith("pp_")},
-                "noise_histogram": z["noise_histogram"], "seconds": float(z["seconds"]),
-                "stage_seconds": json.loads(str(z["stage_seconds"])),
-                "notes": json.loads(str(z["notes"])), "figure": z["figure"].tobytes()}
+def load_part(path: Path, *, experiment: str | None = None) -> dict:
+    """One part as written by :func:`save_part`, verified.
+
+    Raises
+    ------
+    PartError
+        Unreadable, truncated, its checksum wrong (``damaged``), or written by another experiment
+        than ``experiment`` (``foreign``); ``PartError.args[1]`` says which.
+    """
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except Exception as exc:
+        raise PartError(f"{path.name}: unreadable ({exc.__class__.__name__})", "damaged") from None
+    checksum = str(arrays.pop("checksum", ""))
+    if not checksum or _digest(arrays) != checksum:
+        raise PartError(f"{path.name}: its checksum does not match its contents", "damaged")
+    if experiment is not None and str(arrays.get("experiment", "")) != experiment:
+        raise PartError(f"{path.name}: written by another experiment", "foreign")
+    try:
+        return {"per_ping": {k[3:]: arrays[k] for k in arrays if k.startswith("pp_")},
+                "noise_histogram": arrays["noise_histogram"], "seconds": float(arrays["seconds"]),
+                "stage_seconds": json.loads(str(arrays["stage_seconds"])),
+                "notes": json.loads(str(arrays["notes"])), "figure": arrays["figure"].tobytes()}
+    except (KeyError, ValueError) as exc:
+        raise PartError(f"{path.name}: incomplete ({exc})", "damaged") from None
 
 
-def assemble_results(*, labels, values, pings, tasks, parts: Path, attrs: dict) -> xr.Dataset:
+def part_state(path: Path, experiment: str) -> str:
+    """``"ok"``, ``"missing"``, ``"damaged"`` or ``"foreign"`` for a part file."""
+    if not path.exists():
+        return "missing"
+    try:
+        load_part(path, experiment=experiment)
+    except PartError as exc:
+        return exc.args[1]
+    return "ok"
+
+
+def assemble_results(*, labels, values, pings, tasks, parts: Path, attrs: dict,
+                     experiment: str | None = None) -> xr.Dataset:
     """The results dataset of an experiment from its parts.
 
     Parameters
@@ -70,7 +123,7 @@ def assemble_results(*, labels, values, pings, tasks, parts: Path, attrs: dict) 
     stages: dict = {}
     notes: dict = {}
     for tid, j, p, idx in tasks:
-        part = load_part(Path(parts) / f"{tid}.npz")
+        part = load_part(Path(parts) / f"{tid}.npz", experiment=experiment)
         for k in PER_PING_KEYS:
             data[k][idx, col[p]] = part["per_ping"][k]
         if j == 0:

@@ -1,5 +1,8 @@
 """The ``abacus`` command line. The only layer (with the tests) that joins acoustics and
-processing as peers; user errors end in one message and exit status 2, never a traceback.
+processing as peers; every error a user can cause ends in one message and a documented exit
+status (0 ok, 1 internal error — traceback in a log —, 2 bad input or option, 3 too large for
+the memory or disk limits, 5 the machine refused a write, 130 interrupted, 143 terminated),
+never a traceback, never a half-written output.
 
 One module per command (``acoustics/cli/<command>.py``), each with ``add_parser(sub)`` and
 ``command(args)``; this module builds the parser and is the error boundary.
@@ -10,6 +13,7 @@ import argparse
 import importlib
 import sys
 import warnings
+from pathlib import Path
 
 __all__ = ["main", "build_parser", "COMMANDS"]
 
@@ -37,28 +41,132 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+#: exit statuses (docs/reliability.md)
+EXIT_OK, EXIT_INTERNAL, EXIT_USAGE, EXIT_RESOURCES, EXIT_IO = 0, 1, 2, 3, 5
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
+
+
+class _Terminated(BaseException):
+    """SIGTERM, raised in the main thread like KeyboardInterrupt for SIGINT."""
+
+
+def _log_dir():
+    from acoustics.sonar.cache import cache_dir
+    folder = cache_dir()
+    if folder is None:
+        import tempfile
+        return Path(tempfile.gettempdir()) / "abacus-logs"
+    return folder / "logs"
+
+
+def _log_traceback(exc) -> str:
+    """Write the traceback of an unexpected error to a log file; return where (or why not)."""
+    import datetime
+    import os
+    import traceback
+    try:
+        folder = _log_dir()
+        folder.mkdir(parents=True, exist_ok=True)
+        stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+        path = folder / f"abacus-{stamp}-{os.getpid()}.log"
+        path.write_text("abacus " + " ".join(sys.argv[1:]) + "\n\n"
+                        + "".join(traceback.format_exception(exc)))
+        return str(path)
+    except OSError as log_exc:
+        return f"(the log could not be written: {log_exc.strerror})"
+
+
+def _exit_now(code: int, message: str | None = None):
+    """Leave at once: temporaries removed, streams flushed, no interpreter finalisation (a
+    finaliser could wait forever on a lock an interrupted writer still holds)."""
+    import os
+
+    from processing.atomic import remove_active
+    remove_active()
+    if message:
+        print(message, file=sys.stderr)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
+
+
+def _install_signal_handlers():
+    """SIGINT raises KeyboardInterrupt and SIGTERM _Terminated in the main thread; a second
+    signal, or 5 s without the first one having ended the process, exits at once."""
+    import signal
+    import threading
+
+    def watchdog(code, message):
+        timer = threading.Timer(5.0, _exit_now, args=(code, message))
+        timer.daemon = True
+        timer.start()
+
+    state = {"seen": False}
+
+    def handler(signum, frame):
+        code = EXIT_INTERRUPTED if signum == signal.SIGINT else EXIT_TERMINATED
+        if state["seen"]:
+            _exit_now(code, "interrupted")
+        state["seen"] = True
+        watchdog(code, "interrupted")
+        raise KeyboardInterrupt if signum == signal.SIGINT else _Terminated()
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, handler)
+        signal.signal(signal.SIGTERM, handler)
+
+
 def main(argv=None) -> int:
+    """Run one ``abacus`` command; every error a user can cause ends as one line on stderr and
+    a documented exit status, never a traceback."""
     parser = build_parser()
     args = parser.parse_args(argv)   # --help and --version end here, before any heavy import
-    from processing.config import ConfigError
-    from processing.dataset import DatasetError
-    from processing.noise import NoiseEstimateError
-
-    from acoustics.cli.common import UsageError
-    warnings.showwarning = _show_warning
+    _install_signal_handlers()
     try:
-        return int(args.func(args) or 0)
-    except (ConfigError, DatasetError, NoiseEstimateError, UsageError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
+        from processing.config import ConfigError
+        from processing.dataset import DatasetError
+        from processing.noise import NoiseEstimateError
+        from processing.resources import ResourceError
+
+        from acoustics.cli.common import UsageError
+        from acoustics.experiment import ExperimentError
+        from acoustics.paths.meshes import MeshError
+        warnings.showwarning = _show_warning
+        try:
+            return int(args.func(args) or 0)
+        except ResourceError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return EXIT_RESOURCES
+        except (ConfigError, DatasetError, NoiseEstimateError, UsageError, ExperimentError,
+                MeshError) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return EXIT_USAGE
+        except OSError as exc:   # the machine refused: disk full, permission, read-only
+            what = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+            print(f"error: {exc.strerror or exc.__class__.__name__}{what}: nothing was left "
+                  f"half-written", file=sys.stderr)
+            return EXIT_IO
+        except MemoryError:
+            print("error: out of memory (the estimate did not hold: please report it); nothing "
+                  "was left half-written", file=sys.stderr)
+            return EXIT_RESOURCES
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
+        _exit_now(EXIT_INTERRUPTED, "interrupted")
+    except _Terminated:
+        _exit_now(EXIT_TERMINATED, "terminated")
     except BrokenPipeError:
         # the reader of stdout went away (`abacus beams --json | head`): not an error of ours
         import os
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except Exception as exc:  # a bug of ours: one line here, the traceback in a log
+        where = _log_traceback(exc)
+        print(f"error: internal error ({exc.__class__.__name__}: {str(exc).splitlines()[0][:200] if str(exc) else ''}); "
+              f"the traceback is in {where} — please report it", file=sys.stderr)
+        return EXIT_INTERNAL
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,10 +1,12 @@
 """What every command shares: the usage error, scene loading, ping lists, a progress bar."""
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
-__all__ = ["UsageError", "load", "ping_list", "Progress", "default_scene_path"]
+__all__ = ["UsageError", "load", "ping_list", "Progress", "default_scene_path", "check_output",
+           "add_output_options", "check_scene_resources"]
 
 
 class UsageError(Exception):
@@ -48,3 +50,53 @@ def ping_list(scene, n: int | None):
     if n < 1:
         raise UsageError(f"--pings must be >= 1, got {n}")
     return range(scene.pings.first, scene.pings.first + n)
+
+
+def add_output_options(parser, *, overwrite: bool = True, memory: bool = True):
+    """``--overwrite`` and ``--max-memory GB``, shared by the commands that write and allocate."""
+    if overwrite:
+        parser.add_argument("--overwrite", action="store_true",
+                            help="replace an existing output (default: refuse)")
+    if memory:
+        parser.add_argument("--max-memory", type=float, metavar="GB",
+                            help="memory this command may use (default: $ABACUS_MAX_MEMORY_GB, else "
+                                 "half the machine's memory); larger runs are refused up front")
+
+
+def check_output(path, *, overwrite: bool, option: str = "-o", folder: bool = False) -> Path:
+    """The output path of a command, checked before any work: its folder exists, it is not an
+    input's twin, and it is replaced only with ``--overwrite``.
+
+    Raises
+    ------
+    UsageError
+    """
+    p = Path(path)
+    if str(path).strip() == "":
+        raise UsageError(f"{option}: give a file name")
+    parent = p.parent
+    if not parent.exists():
+        raise UsageError(f"{option} {p}: the folder {parent} does not exist (create it first)")
+    if not parent.is_dir():
+        raise UsageError(f"{option} {p}: {parent} is not a folder")
+    if p.exists() or p.is_symlink():
+        if not overwrite:
+            raise UsageError(f"{option} {p}: exists; choose another name, or --overwrite to replace it")
+        if folder and p.exists() and not p.is_dir():
+            raise UsageError(f"{option} {p}: is a file, expected a folder")
+        if not folder and p.is_dir() and p.suffix != ".zarr":
+            raise UsageError(f"{option} {p}: is a folder, expected a file")
+    if not os.access(parent, os.W_OK):
+        raise UsageError(f"{option} {p}: the folder {parent} is not writable")
+    return p
+
+
+def check_scene_resources(scene, args, *, pings=None, images="none", process=True, output=None,
+                          figures=False):
+    """Refuse a scene whose estimated memory or output exceeds the limits (before any work)."""
+    from acoustics.simulation.budget import estimate_scene
+    from processing.resources import check_resources
+    est = estimate_scene(scene, pings=pings, images=images, process=process, figures=figures)
+    check_resources(est, what=f"scene '{scene.name}'", output=output,
+                    max_memory_gb=getattr(args, "max_memory", None))
+    return est

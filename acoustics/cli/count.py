@@ -2,7 +2,8 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
+
+from acoustics.cli.common import add_output_options, check_output
 
 HELP = "detect, locate and count targets in a dataset"
 
@@ -15,22 +16,29 @@ def add_parser(sub):
     c.add_argument("--json", action="store_true", help="print one JSON object: per-ping counts and summary")
     c.add_argument("--plots", metavar="DIR", help="detections over fan-beam images, counts vs ping")
     c.add_argument("--csv", metavar="FILE", help="write the detections table as CSV")
+    add_output_options(c)
     c.set_defaults(func=command)
 
 
 def command(args) -> int:
     import processing
     from processing.dataset import open_tree, write_tree
-    tree = processing.count(open_tree(args.input), args.settings)
+    out = check_output(args.output, overwrite=args.overwrite) if args.output else None
+    csv = check_output(args.csv, overwrite=args.overwrite, option="--csv") if args.csv else None
+    plots = check_output(args.plots, overwrite=args.overwrite, option="--plots", folder=True) if args.plots else None
+    tree = processing.count(open_tree(args.input, max_memory_gb=args.max_memory, work_factor=3.0),
+                            args.settings)
     result = processing.count_summary(tree)
-    if args.output:
-        write_tree(tree, Path(args.output))
-    if args.csv:
-        processing.write_csv(tree, args.csv)
-    if args.plots:
+    if out is not None:
+        write_tree(tree, out)
+    if csv is not None:
+        processing.write_csv(tree, csv)
+    if plots is not None:
+        from processing.atomic import staged
         from processing.plots import count_figures
         n = tree["Processing/Counts"].sizes["ping_time"]
-        count_figures(tree, Path(args.plots), pings=range(min(n, 5)))
+        with staged(plots) as tmp:
+            count_figures(tree, tmp, pings=range(min(n, 5)))
     if args.json:
         print(json.dumps(result))
     else:

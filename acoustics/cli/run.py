@@ -13,7 +13,8 @@ import json
 import re
 from pathlib import Path
 
-from acoustics.cli.common import Progress, UsageError, load, ping_list
+from acoustics.cli.common import (Progress, add_output_options, check_output, check_scene_resources,
+                                  load, ping_list)
 
 _T0 = __import__("time").perf_counter()   # the command's own clock starts at its import
 
@@ -30,8 +31,7 @@ def add_parser(sub):
     r.add_argument("--images", choices=["none", "native", "full"], default="none",
                    help="store the images in run.nc: none (default; they follow from the samples), "
                         "native (at the data's range sampling) or full (every interpolated row)")
-    r.add_argument("--overwrite", action="store_true",
-                   help="replace an existing output folder (default: refuse)")
+    add_output_options(r)
     r.set_defaults(func=command)
 
 
@@ -55,16 +55,19 @@ def command(args) -> int:
     log.add("start", time.perf_counter() - _T0)
     with log.stage("load"):
         scene = load(args.scene)
-    outdir = Path(args.output) if args.output else default_run_folder(scene.name)
-    if outdir.exists() and not args.overwrite:
-        raise UsageError(f"{outdir} exists: choose another -o, or --overwrite to replace it")
-    if outdir.exists() and not outdir.is_dir():
-        raise UsageError(f"{outdir} is a file, not a folder: choose another -o")
-    outdir.parent.mkdir(parents=True, exist_ok=True)
+    if args.output:
+        outdir = check_output(args.output, overwrite=args.overwrite, folder=True)
+    else:   # runs/<name>: the one folder abacus creates for you
+        outdir = default_run_folder(scene.name)
+        outdir.parent.mkdir(exist_ok=True)
+        outdir = check_output(outdir, overwrite=args.overwrite, folder=True)
+    pings = ping_list(scene, args.pings)
+    check_scene_resources(scene, args, pings=len(pings) if pings else None, images=args.images,
+                          output=outdir / "run.nc", figures=args.plots)
     print(f"scene '{scene.name}' ({args.scene}): {scene.pings.count} ping(s), "
           f"sha256 {scene.sha256()[:12]}")
     with log.stage("simulate"):
-        tree = simulate(scene, pings=ping_list(scene, args.pings), progress=Progress("simulate"))
+        tree = simulate(scene, pings=pings, progress=Progress("simulate"))
     with log.stage("process"):
         tree = processing.count(tree, images=args.images)
         result = processing.count_summary(tree)

@@ -4,7 +4,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from acoustics.cli.common import Progress, UsageError, load, ping_list
+from acoustics.cli.common import (Progress, UsageError, add_output_options, check_output,
+                                  check_scene_resources, load, ping_list)
+from acoustics.seeds import SEED_MAX
 
 HELP = "simulate a scene's per-element echoes into a dataset"
 
@@ -16,6 +18,7 @@ def add_parser(sub):
     m.add_argument("--pings", type=int, help="number of pings (default: the scene's)")
     m.add_argument("--seed", type=int, help="seed (default: the scene's)")
     m.add_argument("--format", choices=["netcdf", "zarr"], help="default from the suffix")
+    add_output_options(m)
     m.set_defaults(func=command)
 
 
@@ -23,11 +26,13 @@ def command(args) -> int:
     from acoustics.simulation.run import simulate
     from processing.dataset import ELEMENT_GROUP, write_tree
     scene = load(args.scene)
-    out = Path(args.output)
+    out = check_output(args.output, overwrite=args.overwrite)
     fmt = args.format or ("zarr" if out.suffix == ".zarr" else "netcdf")
-    if args.seed is not None and args.seed < 0:
-        raise UsageError(f"--seed must be >= 0, got {args.seed}")
-    tree = simulate(scene, pings=ping_list(scene, args.pings), seed=args.seed,
+    if args.seed is not None and not 0 <= args.seed <= SEED_MAX:
+        raise UsageError(f"--seed must be an integer in [0, {SEED_MAX}], got {args.seed}")
+    pings = ping_list(scene, args.pings)
+    check_scene_resources(scene, args, pings=len(pings) if pings else None, process=False, output=out)
+    tree = simulate(scene, pings=pings, seed=args.seed,
                     progress=Progress("simulate"))
     write_tree(tree, out, fmt=fmt)
     prov = tree["Provenance"].ds

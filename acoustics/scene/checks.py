@@ -10,8 +10,12 @@ from acoustics.scene.targets_spec import SectorPopulation
 __all__ = ["cross_check"]
 
 
-def cross_check(scene) -> list[tuple[str, str]]:
-    """Physics that is legal but surprising: (message, key path) pairs."""
+def cross_check(scene, *, notes: list | None = None) -> list[tuple[str, str]]:
+    """Physics that is legal but surprising: (message, key path) pairs.
+
+    ``notes``, if given, receives the (message, key path) pairs that describe what the ABACUS
+    preset does by design (its grating lobes): worth saying once, not a warning."""
+    notes = [] if notes is None else notes
     from acoustics.sonar.build import build_sonar
     from acoustics.targets.draw import point_positions_sonar
     out = []
@@ -26,10 +30,13 @@ def cross_check(scene) -> list[tuple[str, str]]:
     for pitch, groups in pitches.items():
         if pitch > lam / 2:
             gl = math.degrees(math.asin(min(1.0, lam / pitch)))
-            out.append((f"receiver pitch {pitch * 1e3:.4g} mm exceeds λ/2 = {lam / 2 * 1e3:.4g} mm: "
-                        f"grating lobes at ±{gl:.2f}° in image{'s' if len(groups) > 1 else ''} "
-                        f"{' and '.join(groups)} (ABACUS has them on purpose; scan within "
-                        f"±{gl / 2:.2f}°)", "sonar"))
+            note = (f"receiver pitch {pitch * 1e3:.4g} mm exceeds λ/2 = {lam / 2 * 1e3:.4g} mm: "
+                    f"grating lobes at ±{gl:.2f}° in image{'s' if len(groups) > 1 else ''} "
+                    f"{' and '.join(groups)} (ABACUS has them on purpose; scan within "
+                    f"±{gl / 2:.2f}°)", "sonar")
+            # the preset's grating lobes are its design, not a surprise: a note for `scene
+            # check`, not a warning repeated by every command
+            (notes if scene.sonar.preset == "abacus" else out).append(note)
     fs, band = scene.sampling.rate_hz, scene.signal.bandwidth_hz
     if fs < band:
         out.append((f"rate {fs:g} Hz is below the pulse bandwidth {band:g} Hz: even complex "

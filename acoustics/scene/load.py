@@ -8,7 +8,7 @@ from acoustics.scene.builtin import resolve_scene_argument
 from acoustics.scene.checks import cross_check
 from acoustics.scene.errors import SceneError, SceneWarning
 from acoustics.scene.schema import Scene
-from processing.config import ConfigError, read_yaml
+from processing.config import ConfigError, parse_yaml, read_yaml
 
 __all__ = ["load_scene", "scene_from_text", "scene_from_resolved_text", "validate_scene", "mesh_files",
            "key_tuple"]
@@ -32,11 +32,12 @@ def scene_from_resolved_text(text: str, *, source_path=None) -> Scene:
     ------
     SceneError
     """
-    import yaml
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise SceneError(f"{source_path or '<scene text>'}: not a YAML scene ({exc.__class__.__name__})") from None
+        data, _ = parse_yaml(text, source=str(source_path or "<scene text>"))
+    except ConfigError as exc:
+        raise SceneError(str(exc)) from None
+    if not isinstance(data, dict):
+        raise SceneError(f"{source_path or '<scene text>'}: not a scene (a YAML mapping of sections)")
     return Scene.validated(data, file=source_path or "<scene>", source_path=source_path)
 
 

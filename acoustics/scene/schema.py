@@ -24,7 +24,7 @@ from acoustics.scene.sonar_spec import SonarSpec
 from acoustics.scene.targets_spec import TargetsSpec
 from acoustics.sonar import preset
 from processing.config import (ConfigError, ConfigModel, Count, NonNegativeReal, PositiveCount,
-                               PositiveReal, Real, dump_yaml, validate_file)
+                               PositiveReal, Real, dump_yaml, parse_yaml, validate_file)
 from processing.settings import ProcessingSettings
 
 __all__ = ["SCHEMA_VERSION", "Scene", "SignalSpec", "AdcSpec", "SamplingSpec", "MediumSpec",
@@ -263,10 +263,8 @@ class Scene(ConfigModel):
         SceneError
             A key that is not in the scene, or a value the schema refuses.
         """
-        import yaml
-
         from acoustics.scene.errors import SceneError
-        data = yaml.safe_load(self.resolved_text())
+        data, _ = parse_yaml(self.resolved_text(), source=f"{self.source_path or '<scene>'} (resolved)")
         for path, value in updates.items():
             keys = _split_key_path(path)
             node = data

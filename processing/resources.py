@@ -1,0 +1,132 @@
+"""Resources a command will need, estimated before any is spent, and the limits they must fit.
+
+Every command that allocates or writes in proportion to its inputs (pings × channels × samples,
+images, meshes, rays, sweep points) estimates the peak memory and the bytes it will write, and
+refuses up front — with the estimate and the key to change — when either exceeds its limit:
+
+``memory``   ``--max-memory GB`` (commands), else ``$ABACUS_MAX_MEMORY_GB``, else half the
+             machine's physical memory;
+``disk``     the free space of the output's filesystem (always), and ``$ABACUS_MAX_OUTPUT_GB``
+             when set.
+
+Estimates are upper bounds by design (a refusal must not be a surprise, an acceptance must not
+end in an allocation error half-way); their terms are documented where they are computed.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["ResourceError", "Estimate", "memory_limit_bytes", "check_resources", "fmt_bytes"]
+
+GB = 1024 ** 3
+
+
+class ResourceError(ValueError):
+    """A command that would need more memory or disk than allowed (the message says how much,
+    what drives it and which key or option to change)."""
+
+
+def fmt_bytes(n: float) -> str:
+    """Bytes for people: 512 B, 3.4 MB, 2.1 GB."""
+    n = float(n)
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if abs(n) >= scale:
+            return f"{n / scale:.1f} {unit}"
+    return f"{n:.0f} B"
+
+
+@dataclass
+class Estimate:
+    """What a command will need.
+
+    Attributes
+    ----------
+    memory_bytes : float
+        Peak memory above the interpreter's own.
+    output_bytes : float
+        Bytes written.
+    terms : list of (str, float)
+        What makes up the memory (for the message), largest first.
+    keys : str
+        The scene keys or options that drive it (for the message).
+    """
+
+    memory_bytes: float = 0.0
+    output_bytes: float = 0.0
+    terms: list = field(default_factory=list)
+    keys: str = ""
+
+    def describe(self) -> str:
+        parts = ", ".join(f"{name} {fmt_bytes(b)}" for name, b in
+                          sorted(self.terms, key=lambda t: -t[1])[:4])
+        return (f"≈ {fmt_bytes(self.memory_bytes)} of memory ({parts}) and "
+                f"{fmt_bytes(self.output_bytes)} written")
+
+
+def _physical_memory() -> float:
+    try:
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
+        return 8.0 * GB
+
+
+def memory_limit_bytes(max_memory_gb: float | None = None) -> float:
+    """The memory a command may use: the option, else ``$ABACUS_MAX_MEMORY_GB``, else half the
+    physical memory.
+
+    Raises
+    ------
+    ResourceError
+        A limit that is not a positive number.
+    """
+    value = max_memory_gb
+    source = "--max-memory"
+    if value is None and os.environ.get("ABACUS_MAX_MEMORY_GB"):
+        value, source = os.environ["ABACUS_MAX_MEMORY_GB"], "ABACUS_MAX_MEMORY_GB"
+    if value is None:
+        return _physical_memory() / 2
+    try:
+        gb = float(value)
+    except ValueError:
+        raise ResourceError(f"{source}={value!r}: give the limit in GB, a positive number") from None
+    if not (gb > 0 and gb < 1e6):
+        raise ResourceError(f"{source}={value!r}: give the limit in GB, a positive number")
+    return gb * GB
+
+
+def check_resources(estimate: Estimate, *, what: str, output: Path | None = None,
+                    max_memory_gb: float | None = None) -> None:
+    """Refuse a command whose estimate exceeds the memory limit or the output's free space.
+
+    Raises
+    ------
+    ResourceError
+    """
+    limit = memory_limit_bytes(max_memory_gb)
+    if estimate.memory_bytes > limit:
+        raise ResourceError(
+            f"{what} would need {estimate.describe()}, over the memory limit of {fmt_bytes(limit)}: "
+            f"reduce {estimate.keys or 'the input'}, or raise the limit (--max-memory GB or "
+            f"ABACUS_MAX_MEMORY_GB)")
+    if output is not None and estimate.output_bytes > 0:
+        folder = Path(output).parent
+        try:
+            free = shutil.disk_usage(folder if folder.exists() else Path.cwd()).free
+        except OSError:
+            free = None
+        if free is not None and estimate.output_bytes > free:
+            raise ResourceError(f"{what} would write ≈ {fmt_bytes(estimate.output_bytes)} but "
+                                f"{folder} has {fmt_bytes(free)} free: reduce {estimate.keys or 'the input'}, "
+                                f"or write elsewhere (-o)")
+        cap = os.environ.get("ABACUS_MAX_OUTPUT_GB")
+        if cap:
+            try:
+                cap_b = float(cap) * GB
+            except ValueError:
+                raise ResourceError(f"ABACUS_MAX_OUTPUT_GB={cap!r}: give the limit in GB") from None
+            if estimate.output_bytes > cap_b:
+                raise ResourceError(f"{what} would write ≈ {fmt_bytes(estimate.output_bytes)}, over "
+                                    f"ABACUS_MAX_OUTPUT_GB = {cap} GB: reduce {estimate.keys or 'the input'}")
