@@ -16,6 +16,7 @@ Rules every configuration model follows:
 from __future__ import annotations
 
 import math
+import re
 import types
 import typing
 from pathlib import Path
@@ -200,6 +201,14 @@ class _StrictLoader(yaml.SafeLoader):
             return super().compose_node(parent, index)
         finally:
             self._depth -= 1
+
+
+# YAML 1.2 reads 1e12 and 1.0e-3 as numbers; PyYAML (YAML 1.1) wants a dot and a signed
+# exponent and would read them as text, which the strict number types then refuse
+_StrictLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"))
 
 
 def parse_yaml(text: str, *, source: str = "<text>") -> tuple[Any, dict[tuple, int]]:

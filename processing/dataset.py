@@ -28,7 +28,7 @@ import xarray as xr
 from .atomic import staged
 
 __all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "TRUTH_GROUP",
-           "write_tree", "write_dataset", "open_tree", "tree_pings", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
+           "write_tree", "write_dataset", "check_finite", "NAN_MEANS", "open_tree", "tree_pings", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
            "read_record"]
 
 FORMATS = ("netcdf", "zarr")
@@ -88,12 +88,38 @@ def write_tree(tree: xr.DataTree, path: str | Path, *, fmt: str | None = None) -
     fmt = _format_of(path, fmt)
     if not path.parent.exists():
         raise DatasetError(f"{path}: the folder {path.parent} does not exist")
+    for node in tree.subtree:
+        check_finite(node.ds, where=f"{path}: /{node.path.strip('/')}")
     with staged(path) as tmp:
         if fmt == "netcdf":
             tree.to_netcdf(tmp, engine="netcdf4", encoding=_encoding(tree) or None)
         else:
             tree.to_zarr(tmp, mode="w", consolidated=False, zarr_format=2)
     return path
+
+
+#: the attribute that lets a variable hold NaN or inf: it says what they mean
+NAN_MEANS = "nan_means"
+
+
+def check_finite(ds: xr.Dataset, *, where: str) -> None:
+    """Refuse to write NaN or inf, except in variables whose ``nan_means`` attribute documents
+    what they mean (e.g. an SNR where no noise level exists).
+
+    Raises
+    ------
+    DatasetError
+        Names the variables (a bug, or a setting beyond what the numbers survive).
+    """
+    bad = []
+    for name, var in ds.data_vars.items():
+        if var.dtype.kind in "fc" and NAN_MEANS not in var.attrs:
+            values = var.values
+            if values.size and not np.all(np.isfinite(values)):
+                bad.append(str(name))
+    if bad:
+        raise DatasetError(f"{where}: refusing to write NaN or inf in {', '.join(bad)} (settings "
+                           f"beyond what the numbers survive, or a bug: please report it)")
 
 
 def write_dataset(ds: xr.Dataset, path: str | Path, *, fmt: str | None = None,
@@ -117,6 +143,7 @@ def write_dataset(ds: xr.Dataset, path: str | Path, *, fmt: str | None = None,
     fmt = _format_of(path, fmt)
     if not path.parent.exists():
         raise DatasetError(f"{path}: the folder {path.parent} does not exist")
+    check_finite(ds, where=str(path))
     chunks = {}
     if chunk_dim is not None:
         chunks = {k: tuple(1 if d == chunk_dim else ds.sizes[d] for d in v.dims)

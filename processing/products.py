@@ -355,6 +355,7 @@ def _detections_dataset(det, st: ProcessingSettings, volume, images: Images) -> 
         if v.dtype == bool:
             v = v.astype(np.int8)
         data[k] = xr.DataArray(v, dims="detection", attrs={"units": units[k]} if k in units else {})
+    data["snr_db"].attrs["nan_means"] = "no noise level was estimated (e.g. a fixed threshold)"
     ds = xr.Dataset(data, attrs={
         "method": st.detect.method, "convention": st.detect.convention,
         "image_group": st.detect.image_group, "n_cells_tested": det.n_cells,
@@ -371,7 +372,8 @@ def _detections_dataset(det, st: ProcessingSettings, volume, images: Images) -> 
         "counting_azimuth_halfwidth_rad": volume.azimuth_halfwidth_rad,
         "counting_elevation_halfwidth_rad": volume.elevation_halfwidth_rad})
     ds["threshold_per_ping"] = xr.DataArray(det.threshold_per_ping, dims="ping_time",
-                                            attrs={"units": "ADC counts"})
+                                            attrs={"units": "ADC counts",
+                                                   "nan_means": "inf: an empty image (no peak)"})
     return ds
 
 
@@ -467,6 +469,9 @@ def count(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.DataT
                     attrs={"counting_volume_m3": volume.volume_m3, "gate_cells": st.count.gate_cells,
                            "has_truth": int("true_in_volume" in res)})
     ds["density_per_m3"].attrs["units"] = "m^-3"
+    for k in AFTER_KEYS:
+        if k in ds:
+            ds[k].attrs["nan_means"] = "no interferometry (normal or combined mode): no elevation"
     out = tree.copy()
     out[COUNTS_GROUP] = xr.DataTree(ds)
     return out

@@ -133,8 +133,10 @@ def assemble_results(*, labels, values, pings, tasks, parts: Path, attrs: dict,
             stages[s] = stages.get(s, 0.0) + t
         for n in part["notes"]:
             notes[n] = notes.get(n, 0) + 1
+    na = {"nan_means": "does not apply to this setting or ping (no truth, no noise estimate, no "
+                        "calibration, nothing counted)"}
     ds = xr.Dataset(
-        {k: xr.DataArray(v, dims=("setting", "ping")) for k, v in data.items()},
+        {k: xr.DataArray(v, dims=("setting", "ping"), attrs=dict(na)) for k, v in data.items()},
         coords={"setting": np.arange(n_set),
                 "setting_label": ("setting", np.array(list(labels), dtype=str)),
                 "sweep_value": ("setting", np.array(list(values), float)),
@@ -162,6 +164,9 @@ def assemble_results(*, labels, values, pings, tasks, parts: Path, attrs: dict,
                                   "long_name": "10 log10(sum s_v / sum counted density) over the pings"}
     ds["ts_true_db"].attrs = {"units": "dB re 1 m^2",
                               "long_name": "10 log10 of the mean sigma_bs of the true targets in the volume"}
+    for k in ds.data_vars:   # summaries of not-applicable values stay not applicable
+        if ds[k].dtype.kind == "f" and k not in ("noise_histogram", "task_seconds"):
+            ds[k].attrs.setdefault("nan_means", na["nan_means"])
     ds.attrs.update({**attrs, "stage_seconds_json": json.dumps(stages),
                      "notes": "; ".join(f"{n} ({c} task{'s' if c > 1 else ''})"
                                         for n, c in sorted(notes.items()))})

@@ -144,6 +144,8 @@ def main(argv=None) -> int:
                 MeshError) as exc:
             print(f"error: {exc}", file=sys.stderr)
             return EXIT_USAGE
+        except BrokenPipeError:
+            raise
         except OSError as exc:   # the machine refused: disk full, permission, read-only
             what = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
             print(f"error: {exc.strerror or exc.__class__.__name__}{what}: nothing was left "

@@ -155,7 +155,12 @@ def build_mesh(spec, *, name: str, key: str, resolve, seed: int = 0) -> trimesh.
             path = resolve(spec.file)
             if not path.exists():
                 raise MeshError(f"{where}: height grid file {path} does not exist")
-            z = np.asarray(_load_grid(path), float)
+            try:
+                z = np.asarray(_load_grid(path), float)
+            except (ValueError, OSError, EOFError):
+                # never echo the file's contents: it may not be the user's
+                raise MeshError(f"{where}: {path} is not a height grid (a .npy array or a CSV "
+                                f"of numbers, one row per y)") from None
             if z.ndim != 2 or min(z.shape) < 2:
                 raise MeshError(f"{where}: {path} must hold a 2-D grid of at least 2 x 2 heights")
             x = spec.origin_m[0] + np.arange(z.shape[1]) * spec.spacing_m[0]
@@ -177,16 +182,17 @@ def build_mesh(spec, *, name: str, key: str, resolve, seed: int = 0) -> trimesh.
                 raise MeshError(f"{where}: mesh file {path} does not exist")
             try:
                 loaded = trimesh.load(path, force="mesh", process=False)
-            except Exception as exc:  # any reader failure is the user's file
-                raise MeshError(f"{where}: cannot read mesh file {path} ({exc.__class__.__name__}: "
-                                f"{exc})") from None
+            except Exception as exc:  # any reader failure is the user's file; never echo it
+                raise MeshError(f"{where}: cannot read mesh file {path} as "
+                                f"{path.suffix.lstrip('.').upper() or 'a mesh'} "
+                                f"({exc.__class__.__name__})") from None
             if not isinstance(loaded, trimesh.Trimesh):
                 raise MeshError(f"{where}: {path} holds no triangle mesh")
             m = loaded
     except MeshError:
         raise
     except (ValueError, OSError) as exc:
-        raise MeshError(f"{where}: {exc}") from None
+        raise MeshError(f"{where}: cannot build the mesh ({exc.__class__.__name__})") from None
     source = getattr(spec, "file", None)
     label = f"{where}" + (f", file {resolve(source)}" if source else "")
     v = np.asarray(m.vertices, float)

@@ -68,3 +68,77 @@ def cross_check(scene, *, notes: list | None = None) -> list[tuple[str, str]]:
             out.append((f"population reaches into the blind zone (< {blind:.3g} m)",
                         f"targets.populations[{i}].range_m"))
     return out
+
+
+def physical_problems(scene) -> list[tuple[str, str]]:
+    """What no sea allows: (message, key path) pairs that make a scene an error.
+
+    Targets must be in the water — below the sea surface (world z = 0; z is depth) and above a
+    flat or rough sea floor when the scene has one — and so must the sonar. Populations are
+    checked over their whole region. Other meshes (rocks, files) are not checked: a target inside
+    a rock is legal geometry (it is shadowed).
+    """
+    from acoustics.sonar.build import build_sonar
+    from acoustics.targets.draw import point_positions_sonar
+    pose = build_sonar(scene).pose
+    out = []
+    if pose.position_m[2] < -1e-9:
+        out.append((f"the sonar is {-pose.position_m[2]:.3g} m above the sea surface (world z = 0 "
+                    f"is the surface, z is depth)", "sonar.pose.position_m"))
+    floors = [_floor_depth(b) for b in scene.boundaries if b.role == "floor"]
+    floors = [f for f in floors if f is not None]
+
+    def check(points_world, key, what):
+        z = points_world[:, 2]
+        if z.size and z.min() < -1e-9:
+            out.append((f"{what} reaches {-z.min():.3g} m above the sea surface (world z = 0 is "
+                        f"the surface, z is depth): targets must be in the water", key))
+        for depth in floors:
+            below = z - depth(points_world[:, 0], points_world[:, 1])
+            if below.size and below.max() > 1e-9:
+                out.append((f"{what} reaches {below.max():.3g} m below the sea floor: targets must "
+                            f"be in the water", key))
+                break
+
+    if scene.targets.points:
+        world = pose.to_world(point_positions_sonar(scene.targets.points, pose))
+        for i, p in enumerate(world):
+            check(p[None, :], f"targets.points[{i}]", f"the target at depth {p[2]:.3g} m")
+    for i, pop in enumerate(scene.targets.populations):
+        check(_region_samples(pop, pose), f"targets.populations[{i}]", "the population's region")
+    return out
+
+
+def _floor_depth(boundary):
+    """Depth of a flat or rough floor as a function of world (x, y), or None (other shapes or
+    frames)."""
+    shape = boundary.mesh
+    if boundary.frame != "world" or any(shape.transform.rotate_deg) or shape.transform.scale != 1.0:
+        return None
+    dz = shape.transform.translate_m[2]
+    if shape.shape == "plane":
+        n = np.asarray(shape.normal, float)
+        if abs(n[2]) < 0.999 * np.linalg.norm(n):
+            return None   # a tilted plane: not a floor we can read a depth off
+        return lambda x, y: np.full(np.shape(x), shape.center_m[2] + dz)
+    if shape.shape == "rough_floor":
+        sx, sy = shape.slope
+        cx, cy = shape.center_m
+        # the height field's deepest excursion is bounded by 4 RMS (Gaussian field)
+        return lambda x, y: (shape.depth_m + dz + sx * (np.asarray(x) - cx) + sy * (np.asarray(y) - cy)
+                             + 4.0 * shape.rms_height_m)
+    return None
+
+
+def _region_samples(pop, pose) -> np.ndarray:
+    """World points on the boundary of a population's region (corners and edge samples)."""
+    g = np.linspace(0.0, 1.0, 5)
+    if pop.kind == "uniform_cuboid":
+        (x0, x1), (y0, y1), (z0, z1) = pop.x_m, pop.y_m, pop.z_m
+        X, Y, Z = np.meshgrid(x0 + g * (x1 - x0), y0 + g * (y1 - y0), z0 + g * (z1 - z0), indexing="ij")
+        pts = np.stack([X.ravel(), Y.ravel(), Z.ravel()], -1)
+        return pts if pop.frame == "world" else pose.to_world(pts)
+    from acoustics.frames import spherical_to_cartesian
+    (r0, r1), (a0, a1), (e0, e1) = pop.range_m, pop.azimuth, pop.elevation
+    R, A, E = np.meshgrid(r0 + g * (r1 - r0), a0 + g * (a1 - a0), e0 + g * (e1 - e0), indexing="ij")
+    return pose.to_world(spherical_to_cartesian(R.ravel(), A.ravel(), E.ravel()))

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from acoustics.scene.builtin import resolve_scene_argument
 from acoustics.scene.checks import cross_check
-from acoustics.scene.errors import SceneError, SceneWarning
+from acoustics.scene.errors import SceneError, SceneWarning, key_tuple
 from acoustics.scene.schema import Scene
 from processing.config import ConfigError, parse_yaml, read_yaml
 
@@ -99,15 +99,39 @@ def mesh_files(scene: Scene):
             yield f"{key}.mesh.file", file
 
 
+#: mesh and height-grid files a scene may read (bytes)
+MAX_MESH_FILE_BYTES = 256 * 1024 ** 2
+#: set to 1 to let scenes read mesh files outside their own folder
+ALLOW_OUTSIDE_ENV = "ABACUS_ALLOW_OUTSIDE_FILES"
+
+
 def _check_files(scene: Scene, path: Path, marks):
-    """A missing mesh or height-grid file is a scene error at load, not a surprise mid-run."""
+    """Mesh and height-grid files are checked at load, not mid-run: they exist, are regular
+    files of a bounded size, and lie in the scene file's folder (or below it) — a scene may not
+    read files elsewhere (``/etc/passwd``, another user's data) unless the person running it sets
+    ``ABACUS_ALLOW_OUTSIDE_FILES=1``."""
+    import os
+    home = path.resolve().parent
+    outside_ok = os.environ.get(ALLOW_OUTSIDE_ENV, "").strip() in ("1", "true", "yes")
     for key, file in mesh_files(scene):
         target = scene.resolve_path(file)
-        if not target.is_file():
-            line = marks.get(tuple(key_tuple(key)))
-            where = f"{path}:{line}" if line else str(path)
+        line = marks.get(tuple(key_tuple(key)))
+        where = f"{path}:{line}" if line else str(path)
+        resolved = target.resolve()
+        if not outside_ok and not resolved.is_relative_to(home):
+            raise SceneError(f"{where}: {key}: {file!r} lies outside the scene's folder {home}; "
+                             f"mesh files must be in it or below it (set {ALLOW_OUTSIDE_ENV}=1 to "
+                             f"allow other places)")
+        if not target.exists():
             raise SceneError(f"{where}: {key}: file {file!r} not found (looked for {target}); "
                              f"paths are relative to the scene file's folder")
+        if not target.is_file():
+            raise SceneError(f"{where}: {key}: {file!r} is not a regular file (a folder, device or "
+                             f"pipe); give a mesh or grid file")
+        size = target.stat().st_size
+        if size > MAX_MESH_FILE_BYTES:
+            raise SceneError(f"{where}: {key}: {file!r} is {size / 1e6:.0f} MB; mesh files are at "
+                             f"most {MAX_MESH_FILE_BYTES / 1e6:.0f} MB")
 
 
 def scene_from_text(text: str, *, name: str = "<text>", check: bool = False) -> Scene:
@@ -120,15 +144,3 @@ def scene_from_text(text: str, *, name: str = "<text>", check: bool = False) -> 
             return load_scene(p, check=check)
         except SceneError as exc:
             raise SceneError(str(exc).replace(str(p), name), exc.problems) from None
-
-
-def key_tuple(key: str):
-    out = []
-    for part in key.replace("]", "").split("."):
-        if "[" in part:
-            head, *idx = part.split("[")
-            out.append(head)
-            out.extend(int(i) for i in idx)
-        else:
-            out.append(part)
-    return out

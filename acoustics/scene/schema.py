@@ -46,10 +46,11 @@ class SignalSpec(ConfigModel):
 
     kind: Literal["lfm"] = "lfm"
     """Linear frequency modulation from f0 - B/2 to f0 + B/2 (``sweep: down`` reverses)."""
-    center_frequency_hz: PositiveReal = preset.CENTER_FREQUENCY_HZ
-    bandwidth_hz: NonNegativeReal = preset.BANDWIDTH_HZ
+    center_frequency_hz: PositiveReal = Field(preset.CENTER_FREQUENCY_HZ, le=10e6)
+    """Carrier f0 (Hz), at most 10 MHz (sonar frequencies)."""
+    bandwidth_hz: NonNegativeReal = Field(preset.BANDWIDTH_HZ, le=10e6)
     """Swept bandwidth B (Hz); 0 gives a CW pulse."""
-    duration_s: PositiveReal = preset.PULSE_DURATION_S
+    duration_s: PositiveReal = Field(preset.PULSE_DURATION_S, le=1.0)
     taper: Literal["sqrt_hann", "hann", "hamming", "tukey", "rectangular"] = "sqrt_hann"
     """Amplitude taper; the thesis' square root of a Hann window (eq. 4.20) by default."""
     sweep: Literal["up", "down"] = "up"
@@ -58,7 +59,7 @@ class SignalSpec(ConfigModel):
 class AdcSpec(ConfigModel):
     """From pressure to ADC counts (thesis §3.6)."""
 
-    scale_counts: PositiveReal = preset.ADC_SCALE_COUNTS
+    scale_counts: PositiveReal = Field(preset.ADC_SCALE_COUNTS, le=1e12)
     """k: counts per unit of pressure, where a transmit element driven at unit amplitude gives
     pressure 1 at 1 m on its axis (the thesis' k maps transmitter volts to ADC counts)."""
     quantize: bool = False
@@ -69,11 +70,11 @@ class AdcSpec(ConfigModel):
 class SamplingSpec(ConfigModel):
     """Complex baseband sampling (Table 3.4). t = 0 is the start of transmission."""
 
-    rate_hz: PositiveReal = preset.SAMPLE_RATE_HZ
-    samples: PositiveCount = preset.SAMPLES_PER_PING
-    time_offset_s: NonNegativeReal = 0.0
+    rate_hz: PositiveReal = Field(preset.SAMPLE_RATE_HZ, le=100e6)
+    samples: PositiveCount = Field(preset.SAMPLES_PER_PING, le=2**22)
+    time_offset_s: NonNegativeReal = Field(0.0, le=100.0)
     """Time (s) of sample 0 after the start of transmission."""
-    receiver_bandwidth_hz: PositiveReal | None = None
+    receiver_bandwidth_hz: PositiveReal | None = Field(None, le=100e6)
     """Receiver (anti-alias) band, centred on the carrier; default rate_hz / 2, the widest
     band real bandpass sampling at rate_hz allows."""
     adc: AdcSpec = AdcSpec()
@@ -92,11 +93,11 @@ class MediumSpec(ConfigModel):
     """Homogeneous water. Sound speed given, or by Mackenzie (1981) when null; absorption
     given (dB/m), or by Francois & Garrison (1982) at the carrier when null."""
 
-    sound_speed_m_s: PositiveReal | None = preset.SOUND_SPEED_M_S
-    absorption_db_per_m: NonNegativeReal | None = None
+    sound_speed_m_s: PositiveReal | None = Field(preset.SOUND_SPEED_M_S, ge=1300.0, le=1800.0)
+    absorption_db_per_m: NonNegativeReal | None = Field(None, le=100.0)
     temperature_c: Real = Field(10.0, ge=-2.0, le=40.0)
     salinity_psu: Real = Field(35.0, ge=0.0, le=45.0)
-    depth_m: NonNegativeReal = 20.0
+    depth_m: NonNegativeReal = Field(20.0, le=12000.0)
     """Depth (m) at which absorption is evaluated."""
     ph: Real = Field(8.0, ge=6.0, le=9.5)
 
@@ -105,10 +106,10 @@ class NoiseSpec(ConfigModel):
     """Receiver and ambient noise: complex white Gaussian, band-limited (thesis §2.4.2)."""
 
     enabled: bool = False
-    sigma_counts: NonNegativeReal = preset.NOISE_SIGMA_COUNTS
+    sigma_counts: NonNegativeReal = Field(preset.NOISE_SIGMA_COUNTS, le=1e12)
     """Standard deviation (ADC counts) of each quadrature component (I and Q) of a
     channel, after band-limiting; the thesis' 126.68 by default."""
-    bandwidth_hz: PositiveReal | None = None
+    bandwidth_hz: PositiveReal | None = Field(None, le=100e6)
     """Noise band centred on the carrier; default the receiver bandwidth."""
 
 
@@ -118,10 +119,10 @@ class NoiseSpec(ConfigModel):
 class PingsSpec(ConfigModel):
     """Which pings a run computes (each ping is seeded by (seed, ping index))."""
 
-    count: PositiveCount = 1
-    first: Count = 0
+    count: PositiveCount = Field(1, le=10_000_000)
+    first: Count = Field(0, le=1_000_000_000)
     """Index of the first ping; pings first .. first + count - 1."""
-    interval_s: PositiveReal = preset.PING_INTERVAL_S
+    interval_s: PositiveReal = Field(preset.PING_INTERVAL_S, le=86400.0)
     """Ping interval (s); ABACUS runs at 1 Hz."""
     start_time: str = "2000-01-01T00:00:00"
     """Time of ping 0 (ISO 8601, UTC); ping p is at start_time + p x interval_s."""
@@ -129,10 +130,16 @@ class PingsSpec(ConfigModel):
     @model_validator(mode="after")
     def _time(self):
         try:
-            np.datetime64(self.start_time, "ns")
-        except ValueError:
+            start = np.datetime64(self.start_time, "ns")
+        except (ValueError, OverflowError):
             raise ValueError("start_time must be an ISO 8601 time such as "
                              "2000-01-01T00:00:00") from None
+        if np.isnat(start) or not np.datetime64("1900-01-01") <= start <= np.datetime64("2200-01-01"):
+            raise ValueError("start_time must lie between 1900 and 2200")
+        last = (self.first + self.count) * self.interval_s
+        if last > 50 * 365.25 * 86400:
+            raise ValueError(f"the last ping would come {last / 3.15576e7:.3g} years after "
+                             f"start_time: at most 50 years (first + count) x interval_s")
         return self
 
 
@@ -172,7 +179,7 @@ class Scene(ConfigModel):
     schema_version: Literal[1] = 1
     name: str = Field(min_length=1)
     description: str = ""
-    seed: Count = 0
+    seed: Count = Field(0, le=2**63 - 1)
     """Root of every random draw: ping p draws from (seed, p, stream)."""
     sonar: SonarSpec = SonarSpec()
     signal: SignalSpec = SignalSpec()
@@ -218,6 +225,19 @@ class Scene(ConfigModel):
                 noise["bandwidth_hz"] = float(band)
         return {**data, "medium": med, "noise": noise}
 
+    @model_validator(mode="after")
+    def _band_fits(self):
+        """Numbers that break the simulation, not just the physics: the pulse must fit the
+        complex-baseband band, and its lowest frequency must stay above zero."""
+        b, fs, f0 = self.signal.bandwidth_hz, self.sampling.rate_hz, self.signal.center_frequency_hz
+        if b > fs:
+            raise ValueError(f"signal.bandwidth_hz {b:g} Hz exceeds sampling.rate_hz {fs:g} Hz: "
+                             f"complex sampling at {fs:g} Hz holds at most {fs:g} Hz of band")
+        if f0 <= b / 2:
+            raise ValueError(f"signal.center_frequency_hz {f0:g} Hz must exceed half the bandwidth "
+                             f"({b / 2:g} Hz): the sweep would pass through 0 Hz")
+        return self
+
     # ------------------------------------------------------------------ helpers
     @classmethod
     def validated(cls, data, *, file, marks=None, source_path=None) -> "Scene":
@@ -238,12 +258,23 @@ class Scene(ConfigModel):
         SceneError
             Every problem at once, each with file, line, key path and what is accepted.
         """
+        from acoustics.scene.checks import physical_problems
         from acoustics.scene.errors import SceneError
+        marks = {} if marks is None else marks
         try:
-            scene = validate_file(cls, data, file=file, marks={} if marks is None else marks)
+            scene = validate_file(cls, data, file=file, marks=marks)
         except ConfigError as exc:
             raise SceneError(str(exc), exc.problems) from None
         scene._source_path = None if source_path is None else Path(source_path)
+        problems = physical_problems(scene)
+        if problems:
+            from acoustics.scene.errors import key_tuple
+            lines = []
+            for message, key in problems:
+                line = marks.get(tuple(key_tuple(key)))
+                lines.append(f"{file}:{line}: {key}: {message}" if line else f"{file}: {key}: {message}")
+            head = f"{len(lines)} problems:\n" if len(lines) > 1 else ""
+            raise SceneError(head + "\n".join(lines))
         return scene
 
     def with_updates(self, updates: dict, *, what: str = "updates") -> "Scene":
