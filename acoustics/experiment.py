@@ -186,8 +186,12 @@ def run_task(payload: dict) -> dict:
         tree = simulate(scene, pings=[payload["ping"]])
         ev = evaluate(tree, settings)
         figure = _figure_bytes(tree, settings[0], payload["ping"]) if payload.get("figure") else b""
+    from processing.dataset import ELEMENT_GROUP
+    clipped = tree[ELEMENT_GROUP].ds.get("adc_clipped_samples")
+    extra = (["the ADC clipped samples (sampling.adc.bits, sampling.adc.scale_counts)"]
+             if clipped is not None and int(clipped.sum()) else [])
     # one line per kind of warning (the numbers in a message differ from ping to ping)
-    notes = sorted({n.split("(")[0].strip()[:200] for n in list(ev["notes"])
+    notes = sorted({n.split("(")[0].strip()[:200] for n in list(ev["notes"]) + extra
                     + [str(w.message) for w in caught if not issubclass(w.category, SceneWarning)]})
     prov = tree["Provenance"].ds
     return {"id": payload["id"], "per_ping": {k: v[:, 0] for k, v in ev["per_ping"].items()},
@@ -239,6 +243,10 @@ def _check_folder(out: Path, man: dict, restart: bool):
                               f"{', ...' if len(others) > 3 else ''}): choose an empty or new folder")
     if restart:
         return
+    for name in (PARTS, "figures"):
+        if (out / name).exists() and not (out / name).is_dir():
+            raise ExperimentError(f"{out / name} is a file, where the experiment keeps a folder: "
+                                  f"choose another -o, or --restart")
     path = out / "experiment.json"
     try:
         old = json.loads(path.read_text()) if path.exists() else None

@@ -28,7 +28,7 @@ import xarray as xr
 from .atomic import staged
 
 __all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "TRUTH_GROUP",
-           "write_tree", "write_dataset", "check_finite", "NAN_MEANS", "open_tree", "tree_pings", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
+           "write_tree", "write_dataset", "check_finite", "NAN_MEANS", "open_tree", "tree_pings", "source_of", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
            "read_record"]
 
 FORMATS = ("netcdf", "zarr")
@@ -208,6 +208,12 @@ def open_tree(path: str | Path, *, max_memory_gb: float | None = None,
 def _first_line(exc) -> str:
     text = str(exc).strip().splitlines()
     return (text[0][:200] if text else "")
+
+
+def source_of(tree: xr.DataTree) -> str:
+    """What to call a dataset in messages: the file it was read from, else its title."""
+    src = getattr(tree, "encoding", {}).get("source")
+    return str(Path(src).name if src else tree.attrs.get("title", "dataset"))
 
 
 def tree_pings(tree: xr.DataTree) -> int:
@@ -394,6 +400,9 @@ def read_record(tree: xr.DataTree, *, source: str = "") -> SonarRecord:
     if sonar is None:
         raise DatasetError(f"{where}: missing group /Sonar (transmit pulse)")
     replica = complex_of(sonar, "replica", where=f"{where}: /Sonar")
+    if replica.size == 0 or not np.any(replica) or not np.all(np.isfinite(replica)):
+        raise DatasetError(f"{where}: /Sonar/replica_r/_i (the transmit pulse) is empty, all zero or "
+                           f"not finite: nothing to compress the echoes with")
     tx = np.stack([_need(tree, "Sonar", f"tx_element_{a}", where).values for a in "xyz"], -1)
     txw = _need(tree, "Sonar", "tx_element_weight", where).values.astype(float)
     f0 = float(_need(tree, "Sonar", "transmit_frequency_center", where).values)

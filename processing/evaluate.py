@@ -13,7 +13,7 @@ import xarray as xr
 
 from .beamforming import SubarrayGeometry
 from .compression import RangeFilter
-from .dataset import TRUTH_GROUP, read_record
+from .dataset import TRUTH_GROUP, read_record, source_of
 from .detection import candidates, noise_fit, ping_thresholds, score_all, select
 from .imaging import form_images
 from .calibration import beam_solid_angle_sr, calibration_of, range_energy_width_m
@@ -69,7 +69,7 @@ def evaluate(tree: xr.DataTree, settings_list) -> dict:
     """
     from . import products
     settings_list = [products.resolve_settings(tree, s) for s in settings_list]
-    rec = read_record(tree, source=str(tree.attrs.get("title", "dataset")))
+    rec = read_record(tree, source=source_of(tree))
     n_pings = rec.samples.shape[0]
     n_set = len(settings_list)
     out = {k: np.full((n_set, n_pings), np.nan) for k in PER_PING_KEYS}

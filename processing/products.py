@@ -16,7 +16,7 @@ import xarray as xr
 
 from .atomic import staged
 from .config import ConfigError, dump_yaml, parse_yaml, validate_file
-from .dataset import ELEMENT_GROUP, DatasetError, complex_of, read_record, split_complex
+from .dataset import ELEMENT_GROUP, DatasetError, complex_of, read_record, source_of, split_complex
 from .chain import record_pings
 from .imaging import Images, form_images
 from .settings import ImageSettings, ProcessingSettings, load_settings
@@ -120,7 +120,7 @@ def images_dataset(im: Images, ping_time, settings: ProcessingSettings, *, stora
 
 
 def _record(tree):
-    return read_record(tree, source=str(tree.attrs.get("title", "dataset")))
+    return read_record(tree, source=source_of(tree))
 
 
 def image(tree: xr.DataTree, settings=None, *, storage: str = "full") -> xr.DataTree:

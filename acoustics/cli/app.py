@@ -30,12 +30,19 @@ def _version() -> str:
     return f"abacus {__version__}"
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a bad option as one line (what is wrong and where help is), status 2."""
+
+    def error(self, message):
+        self.exit(2, f"error: {self.prog}: {message} (see `{self.prog} --help`)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="abacus", description="The abacus command line: simulate "
+    p = _Parser(prog="abacus", description="The abacus command line: simulate "
                                 "the ABACUS multibeam sonar in a ray-traced scene and process its "
                                 "echoes into images, detections and counts.")
     p.add_argument("--version", action="version", version=_version())
-    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
     for name in COMMANDS:
         importlib.import_module(f"acoustics.cli.{name}").add_parser(sub)
     return p

@@ -1,6 +1,7 @@
 """``abacus experiment``: Monte Carlo over pings and a sweep, in parallel (Dask); dataset and report."""
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
 
@@ -56,5 +57,10 @@ def command(args) -> int:
             if np.isfinite(ds["ts_true_db"].isel(setting=0)):
                 line += f" (true mean σ_bs: {float(ds['ts_true_db'].isel(setting=0)):.2f} dB)"
             print(line)
+        for note in [n for n in str(ds.attrs.get("notes", "")).split("; ") if n]:
+            print(f"warning: {note}", file=sys.stderr)
+        if int(ds.attrs.get("parts_recomputed_damaged", 0)):
+            print(f"note: {int(ds.attrs['parts_recomputed_damaged'])} damaged part(s) were recomputed",
+                  file=sys.stderr)
     print(f"outputs in {out}/: {path.name}, report.html, figures/, parts/ (kept for resuming)")
     return 0

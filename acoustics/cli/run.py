@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import sys
+import warnings
 from pathlib import Path
 
 from acoustics.cli.common import (Progress, add_output_options, check_output, check_scene_resources,
@@ -66,11 +68,15 @@ def command(args) -> int:
                           output=outdir / "run.nc", figures=args.plots)
     print(f"scene '{scene.name}' ({args.scene}): {scene.pings.count} ping(s), "
           f"sha256 {scene.sha256()[:12]}")
-    with log.stage("simulate"):
-        tree = simulate(scene, pings=pings, progress=Progress("simulate"))
-    with log.stage("process"):
-        tree = processing.count(tree, images=args.images)
-        result = processing.count_summary(tree)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with log.stage("simulate"):
+            tree = simulate(scene, pings=pings, progress=Progress("simulate"))
+        with log.stage("process"):
+            tree = processing.count(tree, images=args.images)
+            result = processing.count_summary(tree)
+    notes = run_notes(tree, caught)
+    result["summary"]["warnings"] = notes
     with log.stage("write"), staged(outdir) as tmp:
         tmp.mkdir()
         write_tree(tree, tmp / "run.nc")
@@ -85,9 +91,29 @@ def command(args) -> int:
         with log.stage("figures"):
             _figures(scene, tree, outdir)
         made += ", images/, counts/, beams/"
+    for note in notes:
+        print(f"warning: {note}", file=sys.stderr)
     print(f"\noutputs in {outdir}/: {made}")
     print(f"time: {log.summary()} (start: interpreter and imports)")
     return 0
+
+
+def run_notes(tree, caught) -> list[str]:
+    """What deserves a look in a run, once each: warnings raised while simulating and
+    processing (non-Rayleigh noise, a dataset without subarray B, ...) and ADC clipping."""
+    from processing.dataset import ELEMENT_GROUP
+    notes = []
+    for w in caught:
+        text = str(w.message)
+        if text not in notes:
+            notes.append(text)
+    clipped = tree[ELEMENT_GROUP].ds.get("adc_clipped_samples")
+    if clipped is not None and int(clipped.sum()):
+        n = int(clipped.sum())
+        pings = int((clipped.sum("rx_element") > 0).sum())
+        notes.append(f"the ADC clipped {n} samples in {pings} ping(s): echoes beyond its range "
+                     f"are distorted (sampling.adc.bits, sampling.adc.scale_counts)")
+    return notes
 
 
 def _figures(scene, tree, outdir: Path):

@@ -1,0 +1,752 @@
+"""Reliability probes: bad inputs, bad options, interrupts and full disks against the `abacus`
+command line, each in a fresh folder, classified clean or not. Regenerates docs/reliability.md.
+
+    python benchmarks/reliability.py              # every probe (a few minutes on 2 cores)
+    python benchmarks/reliability.py --only paths yaml_bombs
+    python benchmarks/reliability.py --list
+
+A probe is *clean* when the command ends as its class expects — a refusal (exit status ≠ 0, or
+the documented status) whose stderr is at most 3 lines, holds no traceback and echoes no content
+of a file the user did not write, leaving nothing behind in its folder but the inputs (no output,
+no temporary) and nothing outside it; or, for the *controls*, a success — so the probes cannot pass
+by refusing everything. Interrupts must end within 5 s of the signal; a killed run must leave a
+state the next run completes from.
+"""
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import os
+import resource
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+ABACUS = [sys.executable, "-m", "acoustics"]
+SECRET = "root:x:0:0"          # a line of /etc/passwd: must never appear in a message
+
+#: a small, fast scene every probe starts from (1 ping, 1024 samples, two targets)
+BASE = """\
+name: probe
+sampling: {samples: 1024, time_offset_s: 0.017}
+processing:
+  image: {range_m: [13.0, 20.0], n_beams: 16, interpolation: 2}
+targets:
+  points:
+    - {range_m: 17.0, azimuth_deg: 1.0, elevation_deg: 0.1}
+    - {range_m: 19.0, azimuth_deg: -2.0, elevation_deg: -0.1}
+"""
+
+
+@dataclass
+class Probe:
+    cls: str
+    name: str
+    argv: list
+    files: dict = field(default_factory=dict)     # relative path -> str | bytes | callable(path)
+    expect: str = "refuse"                        # "refuse" | "ok"
+    status: int | None = None                     # the exit status it must end with, if fixed
+    timeout: float = 60.0
+    env: dict = field(default_factory=dict)
+    limits: dict = field(default_factory=dict)    # resource name -> soft/hard limit
+    interrupt: tuple | None = None                # (signal, seconds after start)
+    then: list | None = None                      # a command that must succeed afterwards
+    keep: tuple = ()                              # outputs a refusal may leave (documented)
+    setup: object = None                          # callable(folder) run before the probe
+    tmpfs_mb: float | None = None                 # run in a size-limited tmpfs (a full disk)
+    readonly: bool = False                        # ... mounted read-only
+
+
+@dataclass
+class Result:
+    probe: Probe
+    verdict: str
+    reason: str = ""
+    stderr: str = ""
+    seconds: float = 0.0
+
+
+# ------------------------------------------------------------------ the probes
+def scene(extra: str = "", base: str = BASE) -> str:
+    return base + textwrap.dedent(extra)
+
+
+_HDF5 = __import__("threading").Lock()   # HDF5 is not thread-safe: one dataset made at a time
+
+
+def _dataset(kind: str):
+    """A writer of a (possibly damaged) dataset, made from a good 1-ping simulation."""
+    def make(path: Path):
+        with _HDF5:
+            _make_dataset(kind, path)
+    return make
+
+
+def _make_dataset(kind: str, path: Path):
+    if True:
+        import numpy as np
+        import xarray as xr
+        good = CACHE / "good.nc"
+        tree = xr.open_datatree(good).load()
+        if kind == "truncated":
+            path.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
+            return
+        if kind == "empty":
+            path.write_bytes(b"")
+            return
+        if kind == "text":
+            path.write_text("this is not a dataset\n" * 20)
+            return
+        if kind == "hdf5_garbage":
+            path.write_bytes(b"\x89HDF\r\n\x1a\n" + os.urandom(4096))
+            return
+        eg = "Simulation/Element_group1"
+        if kind == "no_sonar":
+            tree = xr.DataTree.from_dict({k: v.ds for k, v in tree.subtree_with_keys if k != "Sonar"}
+                                         if hasattr(tree, "subtree_with_keys") else
+                                         {n.path: n.ds for n in tree.subtree if n.path != "/Sonar"})
+        elif kind == "no_samples":
+            ds = tree[eg].ds.drop_vars(["element_r", "element_i"])
+            tree[eg] = xr.DataTree(ds)
+        elif kind == "no_element_group":
+            tree = xr.DataTree.from_dict({n.path: n.ds for n in tree.subtree
+                                          if not n.path.startswith("/Simulation/Element")})
+        elif kind == "nan_samples":
+            ds = tree[eg].ds.copy(deep=True)
+            ds["element_r"].values[0, 0, 5] = np.nan
+            tree[eg] = xr.DataTree(ds)
+        elif kind == "no_imaginary_part":
+            ds = tree[eg].ds.drop_vars("element_i")
+            tree[eg] = xr.DataTree(ds)
+        elif kind == "bad_mode":
+            ds = tree[eg].ds.copy()
+            ds.attrs["mode"] = "sideways"
+            tree[eg] = xr.DataTree(ds)
+        elif kind == "zero_interval":
+            ds = tree[eg].ds.copy()
+            ds["sample_interval"] = xr.DataArray(0.0)
+            tree[eg] = xr.DataTree(ds)
+        elif kind == "zero_replica":
+            ds = tree["Sonar"].ds.copy()
+            ds["replica_r"] = ds["replica_r"] * 0
+            ds["replica_i"] = ds["replica_i"] * 0
+            tree["Sonar"] = xr.DataTree(ds)
+        elif kind == "wrong_dims":
+            ds = tree[eg].ds.copy()
+            ds["element_r"] = ds["element_r"].isel(ping_time=0)
+            ds["element_i"] = ds["element_i"].isel(ping_time=0)
+            tree[eg] = xr.DataTree(ds)
+        elif kind == "no_sound_speed":
+            ds = tree["Environment"].ds.drop_vars("sound_speed_indicative")
+            tree["Environment"] = xr.DataTree(ds)
+        elif kind == "only_subarray_a":
+            ds = tree[eg].ds
+            keep = np.flatnonzero(ds["element_subarray"].values.astype(str) == "A")
+            tree[eg] = xr.DataTree(ds.isel(rx_element=keep))
+        elif kind == "bad_provenance":
+            ds = tree["Provenance"].ds.copy()
+            ds.attrs["scene_text"] = "a: &x [1]\nb: *x\n"
+            tree["Provenance"] = xr.DataTree(ds)
+        elif kind == "good":
+            pass
+        else:  # pragma: no cover
+            raise ValueError(kind)
+        tree.to_netcdf(path)
+
+
+def probes() -> list[Probe]:
+    P = []
+
+    def add(cls, name, argv, **kw):
+        P.append(Probe(cls, name, list(argv), **kw))
+
+    # --- controls: what must work, so that refusing everything cannot pass
+    add("controls", "scene check", ["scene", "check", "s.yaml"], files={"s.yaml": BASE}, expect="ok")
+    add("controls", "run, no plots", ["run", "s.yaml", "-o", "out", "--no-plots"], files={"s.yaml": BASE},
+        expect="ok", keep=("out",))
+    add("controls", "simulate then count", ["simulate", "s.yaml", "-o", "s.nc"], files={"s.yaml": BASE},
+        expect="ok", keep=("s.nc",), then=["count", "s.nc", "--json"])
+    add("controls", "image with plots", ["image", "d.nc", "--plots", "figs"], files={"d.nc": _dataset("good")},
+        expect="ok", keep=("figs",))
+    add("controls", "experiment, 2 pings", ["experiment", "s.yaml", "--pings", "2", "--workers", "0", "-o", "exp"],
+        files={"s.yaml": BASE}, expect="ok", keep=("exp",), timeout=120)
+    add("controls", "dataset without subarray B (warned, imaged as normal)", ["count", "d.nc"],
+        files={"d.nc": _dataset("only_subarray_a")}, expect="ok")
+    add("controls", "1e12 written as YAML 1.2 reads", ["scene", "check", "s.yaml"],
+        files={"s.yaml": scene("noise: {sigma_counts: 1e2}\n")}, expect="ok")
+
+    # --- YAML bombs and hostile structure
+    laughs = "name: lol\n" + "a0: &a0 [lol, lol, lol, lol, lol, lol, lol, lol, lol]\n" + "".join(
+        f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 9)}]\n" for i in range(1, 10))
+    add("yaml_bombs", "billion laughs", ["scene", "check", "s.yaml"], files={"s.yaml": laughs},
+        limits={"RLIMIT_AS": 2 << 30})
+    add("yaml_bombs", "self-referencing alias", ["scene", "check", "s.yaml"],
+        files={"s.yaml": "name: x\ntargets: &t {points: *t}\n"})
+    add("yaml_bombs", "deep flow nesting", ["scene", "check", "s.yaml"],
+        files={"s.yaml": "name: x\nd: " + "[" * 20000 + "]" * 20000 + "\n"})
+    add("yaml_bombs", "deep block nesting", ["scene", "check", "s.yaml"],
+        files={"s.yaml": "name: x\n" + "".join("  " * i + f"k{i}:\n" for i in range(200)) + "  " * 200 + "v: 1\n"})
+    add("yaml_bombs", "a 3 MB scene file", ["scene", "check", "s.yaml"],
+        files={"s.yaml": "name: x\n" + "# padding\n" * 300_000})
+    add("yaml_bombs", "anchors in a settings file", ["count", "d.nc", "--settings", "p.yaml"],
+        files={"d.nc": _dataset("good"), "p.yaml": "detect: &d {method: fixed}\ncount: *d\n"})
+    add("yaml_bombs", "alias bomb in a dataset's provenance", ["count", "d.nc"],
+        files={"d.nc": _dataset("bad_provenance")})
+    add("yaml_bombs", "python object tag", ["scene", "check", "s.yaml"],
+        files={"s.yaml": "name: !!python/object/apply:os.system ['echo pwned']\n"})
+
+    # --- malformed YAML and files that are not scenes
+    for name, text in [("syntax error", "name: x\nsonar: {mode: [normal\n"),
+                       ("tab indentation", "name: x\nsonar:\n\tmode: normal\n"),
+                       ("empty file", ""), ("only a comment", "# nothing\n"),
+                       ("a list at the top", "- name: x\n"), ("a scalar at the top", "just text\n"),
+                       ("duplicate key", "name: x\nname: y\n"), ("non-string key", "name: x\n1: 2\n"),
+                       ("boolean key", "name: x\non: 1\n"), ("unclosed quote", "name: 'x\n"),
+                       ("two documents", "name: x\n---\nname: y\n")]:
+        add("malformed_yaml", name, ["scene", "check", "s.yaml"], files={"s.yaml": text})
+    add("malformed_yaml", "binary file", ["scene", "check", "s.yaml"], files={"s.yaml": b"\xff\xfe\x00\x01" * 50})
+    add("malformed_yaml", "a folder as the scene", ["scene", "check", "d"], setup=lambda f: (f / "d").mkdir())
+    add("malformed_yaml", "a device as the scene", ["scene", "check", "/dev/zero"], timeout=20)
+    add("malformed_yaml", "missing file", ["run", "nope.yaml", "-o", "out"])
+    add("malformed_yaml", "/etc/passwd as the scene", ["scene", "check", "/etc/passwd"])
+
+    # --- values the schema must refuse
+    bad_values = {
+        "count as text": "pings: {count: '3'}\n", "negative pings": "pings: {count: -1}\n",
+        "zero pings": "pings: {count: 0}\n", "nan sound speed": "medium: {sound_speed_m_s: .nan}\n",
+        "inf rate": "sampling: {rate_hz: .inf}\n", "boolean bandwidth": "signal: {bandwidth_hz: true}\n",
+        "negative duration": "signal: {duration_s: -0.007}\n", "unknown key": "colour: blue\n",
+        "unknown nested key": "sonar: {colour: blue}\n", "bad mode": "sonar: {mode: sideways}\n",
+        "bad taper": "signal: {taper: triangle}\n", "bad window": "processing: {image: {range_window: x}}\n",
+        "elevation over 90°": "targets:\n  points:\n    - {range_m: 17, azimuth_deg: 0, elevation_deg: 95}\n",
+        "range interval reversed": "processing: {image: {range_m: [20, 13]}}\n",
+        "count and density": "targets:\n  populations:\n    - {kind: uniform_cuboid, x_m: [-1,1], y_m: [-1,1], z_m: [15,16], count: 3, density_per_m3: 1}\n",
+        "cuboid low above high": "targets:\n  populations:\n    - {kind: uniform_cuboid, x_m: [1,-1], y_m: [-1,1], z_m: [15,16], count: 3}\n",
+        "temperature 90 °C": "medium: {temperature_c: 90}\n", "salinity negative": "medium: {salinity_psu: -3}\n",
+        "pH 14": "medium: {ph: 14}\n", "kernel length 1": "effects: {kernel_length: 1}\n",
+        "oversampling 100": "effects: {oversampling: 100}\n", "multipath order 9": "effects: {multipath_order: 9}\n",
+        "ADC bits 64": "sampling: {adc: {bits: 64}}\n", "bad start time": "pings: {start_time: yesterday}\n",
+        "start time in 3000": "pings: {start_time: '3000-01-01T00:00:00'}\n",
+        "bandwidth over the rate": "sampling: {rate_hz: 10000}\n",
+        "f0 below half the band": "signal: {center_frequency_hz: 5000}\n",
+        "TS of +100 dB": "targets:\n  points:\n    - {range_m: 17, azimuth_deg: 0, elevation_deg: 0, backscatter: {model: fixed, ts_db: 100}}\n",
+        "Rayleigh lo above hi": "targets:\n  points:\n    - {range_m: 17, azimuth_deg: 0, elevation_deg: 0, backscatter: {model: rayleigh, lo_m: 2, hi_m: 1}}\n",
+        "zero boresight": "sonar: {pose: {boresight: [0, 0, 0]}}\n",
+        "boresight along the receiver": "sonar: {pose: {boresight: [0, 1, 0]}}\n",
+        "threshold value negative": "processing: {detect: {method: fixed, value: -5}}\n",
+        "pfa above 1": "processing: {detect: {pfa_image: 2}}\n",
+        "schema version 2": "schema_version: 2\n",
+    }
+    for name, extra in bad_values.items():
+        add("schema_values", name, ["run", "s.yaml", "-o", "out"], files={"s.yaml": scene(extra)})
+
+    # --- overflowing values
+    overflow = {"seed 2^70": "seed: 1180591620717411303424\n", "sound speed 1e12": "medium: {sound_speed_m_s: 1.0e12}\n",
+                "ping interval 1e20": "pings: {interval_s: 1.0e20}\n", "f0 1e15": "signal: {center_frequency_hz: 1.0e15}\n",
+                "ADC scale 1e300": "sampling: {adc: {scale_counts: 1.0e300}}\n", "rate 1e300": "sampling: {rate_hz: 1.0e300}\n",
+                "samples 1e12": "sampling: {samples: 1000000000000}\n", "pings 1e18": "pings: {count: 1000000000000000000}\n",
+                "first ping 2^62": "pings: {first: 4611686018427387904}\n", "time offset 1e30": "sampling: {time_offset_s: 1.0e30}\n",
+                "noise sigma 1e300": "noise: {enabled: true, sigma_counts: 1.0e300}\n",
+                "floor size 1e300": "boundaries:\n  - {name: f, role: floor, mesh: {shape: plane, center_m: [0,0,30], size_m: [1.0e300, 1.0e300]}}\n",
+                "target at 1e300 m": "targets:\n  points:\n    - {frame: world, position_m: [0, 0, 1.0e300]}\n",
+                "density 1e30": "targets:\n  populations:\n    - {kind: uniform_cuboid, x_m: [-1,1], y_m: [-1,1], z_m: [15,16], density_per_m3: 1.0e30}\n"}
+    for name, extra in overflow.items():
+        add("overflow_values", name, ["run", "s.yaml", "-o", "out"], files={"s.yaml": scene(extra)})
+
+    # --- sizes nobody can run: refused up front (exit 3), with the estimate
+    no_sampling = BASE.replace("sampling: {samples: 1024, time_offset_s: 0.017}\n", "")
+    no_targets = BASE.split("targets:")[0]
+    sizes = {"10^7 pings of 4096 samples": ("pings: {count: 10000000}\nsampling: {samples: 4096}\n", no_sampling),
+             "4 M samples x 1000 pings": ("sampling: {samples: 4000000}\npings: {count: 1000}\n", no_sampling),
+             "10^7 targets": ("targets:\n  populations:\n    - {kind: uniform_cuboid, x_m: [-1,1], y_m: [-1,1], z_m: [15,16], count: 10000000}\n", no_targets),
+             "floor at 1 mm resolution": ("boundaries:\n  - {name: f, role: floor, mesh: {shape: rough_floor, depth_m: 30, size_m: [1000, 1000], resolution_m: 0.001}}\n", BASE),
+             "plane of 10^5 x 10^5 segments": ("boundaries:\n  - {name: f, role: floor, mesh: {shape: plane, center_m: [0,0,30], segments: [100000, 100000]}}\n", BASE),
+             "10^6 rays per square degree": ("boundaries:\n  - {name: f, role: floor, mesh: {shape: plane, center_m: [0,0,30]}}\neffects: {reverberation: {enabled: true, rays_per_square_degree: 1000000}}\n", BASE),
+             "huygens with 10^8 targets": ("effects: {directivity: huygens}\ntargets:\n  populations:\n    - {kind: uniform_cuboid, x_m: [-1,1], y_m: [-1,1], z_m: [15,16], count: 100000000}\n", no_targets),
+             "a density of 10^5 per m³ over 10^4 m³": ("targets:\n  populations:\n    - {kind: uniform_cuboid, x_m: [-50,50], y_m: [-50,50], z_m: [15,16], density_per_m3: 100000}\n", no_targets)}
+    for name, (extra, base) in sizes.items():
+        # the rough floor has a limit of its own (exit 2, naming it); the rest are estimates (3)
+        add("impossible_sizes", name, ["run", "s.yaml", "-o", "out"], files={"s.yaml": scene(extra, base=base)},
+            status=None if "1 mm" in name else 3)
+    add("impossible_sizes", "scene check says the same", ["scene", "check", "s.yaml"],
+        files={"s.yaml": scene("pings: {count: 10000000}\n")}, status=3)
+    add("impossible_sizes", "--pings 10^8", ["simulate", "s.yaml", "-o", "s.nc", "--pings", "100000000"],
+        files={"s.yaml": BASE}, status=3)
+    add("impossible_sizes", "a memory limit of 50 MB", ["run", "s.yaml", "-o", "out", "--max-memory", "0.05"],
+        files={"s.yaml": BASE}, status=3)
+
+    # --- physically impossible scenes
+    phys = {"target above the surface": "  - {frame: world, position_m: [0, 0, -2]}\n",
+            "target in the air above the sonar": "  - {range_m: 5, azimuth_deg: 0, elevation_deg: 0}\n"}
+    add("impossible_physics", "target above the surface", ["run", "s.yaml", "-o", "out"],
+        files={"s.yaml": scene("", base=BASE.replace("  points:\n", "  points:\n" + phys["target above the surface"]))})
+    add("impossible_physics", "sonar looking up at a target in the air", ["run", "s.yaml", "-o", "out"],
+        files={"s.yaml": scene("sonar: {pose: {boresight: [0, 0, -1]}}\n")})
+    add("impossible_physics", "population above the surface", ["run", "s.yaml", "-o", "out"],
+        files={"s.yaml": scene("targets:\n  populations:\n    - {kind: uniform_cuboid, x_m: [-1,1], y_m: [-1,1], z_m: [-3, 5], count: 3}\n",
+                               base=BASE.split("targets:")[0])})
+    add("impossible_physics", "target below a flat floor", ["run", "s.yaml", "-o", "out"],
+        files={"s.yaml": scene("boundaries:\n  - {name: f, role: floor, mesh: {shape: plane, center_m: [0,0,18]}}\n")})
+    add("impossible_physics", "population below a rough floor", ["run", "s.yaml", "-o", "out"],
+        files={"s.yaml": scene("boundaries:\n  - {name: f, role: floor, mesh: {shape: rough_floor, depth_m: 20}}\n"
+                               "targets:\n  populations:\n    - {kind: uniform_cuboid, x_m: [-1,1], y_m: [-1,1], z_m: [15, 25], count: 3}\n",
+                               base=BASE.split("targets:")[0])})
+    add("impossible_physics", "sonar above the surface", ["run", "s.yaml", "-o", "out"],
+        files={"s.yaml": scene("sonar: {pose: {position_m: [0, 0, -3]}}\n")})
+
+    # --- paths a scene may not read
+    def floor_file(path):
+        return scene(f"boundaries:\n  - {{name: f, role: floor, mesh: {{shape: height_grid, file: '{path}', spacing_m: [1, 1]}}}}\n")
+    add("paths", "grid file /etc/passwd", ["run", "s.yaml", "-o", "out"], files={"s.yaml": floor_file("/etc/passwd")})
+    add("paths", "mesh file /etc/passwd", ["run", "s.yaml", "-o", "out"],
+        files={"s.yaml": scene("boundaries:\n  - {name: r, role: obstacle, mesh: {shape: file, file: /etc/passwd}}\n")})
+    add("paths", "grid file ../outside.csv", ["scene", "check", "s/s.yaml"],
+        files={"s/s.yaml": floor_file("../outside.csv"), "outside.csv": "1,2\n3,4\n"})
+    add("paths", "symlink pointing outside", ["scene", "check", "s/s.yaml"],
+        files={"s/s.yaml": floor_file("link.csv")},
+        setup=lambda f: (f / "s" / "link.csv").symlink_to("/etc/passwd"))
+    add("paths", "a folder as the grid", ["scene", "check", "s.yaml"], files={"s.yaml": floor_file("g")},
+        setup=lambda f: (f / "g").mkdir())
+    add("paths", "/dev/zero as the mesh", ["scene", "check", "s.yaml"], timeout=20,
+        files={"s.yaml": scene("boundaries:\n  - {name: r, role: obstacle, mesh: {shape: file, file: /dev/zero}}\n")},
+        env={"ABACUS_ALLOW_OUTSIDE_FILES": "1"})
+    add("paths", "passwd copied in as a grid (contents not echoed)", ["scene", "check", "s.yaml"],
+        files={"s.yaml": floor_file("g.csv")}, setup=lambda f: shutil.copy("/etc/passwd", f / "g.csv"))
+    add("paths", "passwd copied in as an OBJ", ["scene", "check", "s.yaml"],
+        files={"s.yaml": scene("boundaries:\n  - {name: r, role: obstacle, mesh: {shape: file, file: m.obj}}\n")},
+        setup=lambda f: shutil.copy("/etc/passwd", f / "m.obj"))
+    add("paths", "missing grid file", ["scene", "check", "s.yaml"], files={"s.yaml": floor_file("none.csv")})
+    add("paths", "a pickled .npy grid", ["scene", "check", "s.yaml"], files={"s.yaml": floor_file("g.npy")},
+        setup=lambda f: __import__("numpy").save(f / "g.npy", __import__("numpy").array([{"a": 1}], dtype=object),
+                                                 allow_pickle=True))
+    add("paths", "--settings /etc/passwd", ["count", "d.nc", "--settings", "/etc/passwd"],
+        files={"d.nc": _dataset("good")})
+    add("paths", "noise file /etc/passwd", ["count", "d.nc", "--settings", "p.yaml"],
+        files={"d.nc": _dataset("good"), "p.yaml": "detect: {noise: {source: noise_file, file: /etc/passwd}}\n"})
+
+    # --- scene names that try to leave runs/
+    for name in ("../../escaped", "/tmp/abs-escape", "..", "a/../../b"):
+        add("scene_name_traversal", f"name {name!r}", ["run", "s.yaml", "--no-plots"],
+            files={"s.yaml": BASE.replace("name: probe", f"name: '{name}'")}, expect="ok", keep=("runs",))
+
+    # --- meshes that are not meshes
+    def mesh_scene(file):
+        return scene(f"boundaries:\n  - {{name: r, role: obstacle, mesh: {{shape: file, file: {file}, repair: false}}}}\n")
+    add("bad_meshes", "empty OBJ", ["scene", "check", "s.yaml"], files={"s.yaml": mesh_scene("m.obj"), "m.obj": ""})
+    add("bad_meshes", "NaN vertices", ["scene", "check", "s.yaml"],
+        files={"s.yaml": mesh_scene("m.obj"), "m.obj": "v 0 0 20\nv nan 0 20\nv 0 1 20\nf 1 2 3\n"})
+    add("bad_meshes", "faces past the vertices", ["scene", "check", "s.yaml"],
+        files={"s.yaml": mesh_scene("m.obj"), "m.obj": "v 0 0 20\nv 1 0 20\nv 0 1 20\nf 1 2 9\n"})
+    add("bad_meshes", "text as STL", ["scene", "check", "s.yaml"],
+        files={"s.yaml": mesh_scene("m.stl"), "m.stl": "solid nothing here at all\n"})
+    add("bad_meshes", "degenerate faces, repair off", ["scene", "check", "s.yaml"],
+        files={"s.yaml": mesh_scene("m.obj"), "m.obj": "v 0 0 20\nv 1 0 20\nv 2 0 20\nf 1 2 3\n"})
+    add("bad_meshes", "random bytes as PLY", ["scene", "check", "s.yaml"],
+        files={"s.yaml": mesh_scene("m.ply"), "m.ply": os.urandom(3000)})
+    add("bad_meshes", "grid of one height", ["scene", "check", "s.yaml"],
+        files={"s.yaml": floor_file("g.csv"), "g.csv": "5\n"})
+    add("bad_meshes", "grid with NaN", ["scene", "check", "s.yaml"],
+        files={"s.yaml": floor_file("g.csv"), "g.csv": "30,30\nnan,30\n"})
+    add("bad_meshes", "unknown mesh suffix", ["scene", "check", "s.yaml"],
+        files={"s.yaml": mesh_scene("m.xyz"), "m.xyz": "1 2 3\n"})
+
+    # --- datasets processing cannot use
+    for kind in ("text", "empty", "truncated", "hdf5_garbage", "no_sonar", "no_samples", "no_element_group",
+                 "nan_samples", "no_imaginary_part", "bad_mode", "zero_interval", "zero_replica", "wrong_dims",
+                 "no_sound_speed"):
+        add("bad_datasets", f"count: {kind.replace('_', ' ')}", ["count", "d.nc", "-o", "c.nc"], files={"d.nc": _dataset(kind)})
+    add("bad_datasets", "image: truncated", ["image", "d.nc", "-o", "i.nc"], files={"d.nc": _dataset("truncated")})
+    add("bad_datasets", "image: a folder that is not Zarr", ["image", "d.zarr", "-o", "i.nc"],
+        setup=lambda f: (f / "d.zarr").mkdir())
+    add("bad_datasets", "missing dataset", ["count", "none.nc"])
+    add("bad_datasets", "a device as the dataset", ["count", "/dev/zero"], timeout=20)
+    add("bad_datasets", "image --ping past the end", ["image", "d.nc", "--plots", "p", "--ping", "7"],
+        files={"d.nc": _dataset("good")})
+
+    # --- options
+    opts = [("--pings 0", ["simulate", "s.yaml", "-o", "s.nc", "--pings", "0"]),
+            ("--pings -5", ["run", "s.yaml", "-o", "out", "--pings", "-5"]),
+            ("--pings abc", ["run", "s.yaml", "-o", "out", "--pings", "abc"]),
+            ("--seed -1", ["simulate", "s.yaml", "-o", "s.nc", "--seed", "-1"]),
+            ("--seed 2^70", ["simulate", "s.yaml", "-o", "s.nc", "--seed", str(2 ** 70)]),
+            ("--sweep without =", ["experiment", "s.yaml", "-o", "e", "--sweep", "threshold"]),
+            ("--sweep bad range", ["experiment", "s.yaml", "-o", "e", "--sweep", "threshold=5:1:1"]),
+            ("--sweep zero step", ["experiment", "s.yaml", "-o", "e", "--sweep", "threshold=1:5:0"]),
+            ("--sweep text values", ["experiment", "s.yaml", "-o", "e", "--sweep", "threshold=a,b"]),
+            ("--sweep unknown key", ["experiment", "s.yaml", "-o", "e", "--sweep", "colour=1,2"]),
+            ("--sweep 10^6 points", ["experiment", "s.yaml", "-o", "e", "--sweep", "threshold=0:1000000:1"]),
+            ("--sweep a value the schema refuses", ["experiment", "s.yaml", "-o", "e", "--sweep", "noise.sigma_counts=-1,2"]),
+            ("--workers -1", ["experiment", "s.yaml", "-o", "e", "--workers", "-1"]),
+            ("--format xml", ["simulate", "s.yaml", "-o", "s.nc", "--format", "xml"]),
+            ("unknown option", ["run", "s.yaml", "--colour"]),
+            ("no command", []),
+            ("unknown command", ["fly"]),
+            ("--max-memory -1", ["run", "s.yaml", "-o", "out", "--max-memory", "-1"]),
+            ("--settings missing", ["count", "d.nc", "--settings", "none.yaml"]),
+            ("--settings with a bad key", ["count", "d.nc", "--settings", "p.yaml"]),
+            ("image with neither -o nor --plots", ["image", "d.nc"]),
+            ("view without -o", ["view", "s.yaml"])]
+    for name, argv in opts:
+        add("bad_options", name, argv, files={"s.yaml": BASE, "d.nc": _dataset("good"),
+                                              "p.yaml": "detect: {colour: red}\n"})
+
+    # --- outputs that are there already, or cannot be
+    add("output_collisions", "simulate -o an existing file", ["simulate", "s.yaml", "-o", "s.nc"],
+        files={"s.yaml": BASE, "s.nc": "keep me"})
+    add("output_collisions", "simulate -o an existing folder", ["simulate", "s.yaml", "-o", "d"],
+        files={"s.yaml": BASE}, setup=lambda f: (f / "d").mkdir())
+    add("output_collisions", "simulate into a missing folder", ["simulate", "s.yaml", "-o", "no/such/s.nc"],
+        files={"s.yaml": BASE})
+    add("output_collisions", "count --csv an existing file", ["count", "d.nc", "--csv", "c.csv"],
+        files={"d.nc": _dataset("good"), "c.csv": "keep me"})
+    add("output_collisions", "image -o the input itself", ["image", "d.nc", "-o", "d.nc"],
+        files={"d.nc": _dataset("good")})
+    add("output_collisions", "run -o an existing file", ["run", "s.yaml", "-o", "f"], files={"s.yaml": BASE, "f": "x"})
+    add("output_collisions", "run -o an existing run", ["run", "s.yaml", "-o", "out", "--no-plots"],
+        files={"s.yaml": BASE, "out/run.nc": "old"})
+    add("output_collisions", "experiment -o a folder of other files", ["experiment", "s.yaml", "-o", "e", "--workers", "0"],
+        files={"s.yaml": BASE, "e/thesis.pdf": "mine"})
+    add("output_collisions", "experiment -o a file", ["experiment", "s.yaml", "-o", "e", "--workers", "0"],
+        files={"s.yaml": BASE, "e": "a file"})
+    add("output_collisions", "simulate into a read-only folder", ["simulate", "s.yaml", "-o", "disk/s.nc"],
+        files={"s.yaml": BASE}, tmpfs_mb=4, readonly=True, keep=("disk",))
+    add("output_collisions", "view -o an existing picture", ["view", "s.yaml", "-o", "v.png"],
+        files={"s.yaml": BASE, "v.png": "keep"})
+
+    # --- experiment state
+    def exp_then(damage):
+        def setup(folder):
+            r = subprocess.run(ABACUS + ["experiment", "s.yaml", "--pings", "2", "--workers", "0", "-o", "exp"],
+                               cwd=folder, env=_env(), capture_output=True, text=True)
+            if r.returncode:
+                raise RuntimeError(r.stderr)
+            damage(folder / "exp")
+        return setup
+    run_exp = ["experiment", "s.yaml", "--pings", "2", "--workers", "0", "-o", "exp"]
+    add("experiment_state", "truncated part (recomputed)", run_exp, files={"s.yaml": BASE}, expect="ok", keep=("exp",),
+        setup=exp_then(lambda e: (e / "parts" / "ping000000.npz").write_bytes(
+            (e / "parts" / "ping000000.npz").read_bytes()[:100])), timeout=120)
+    add("experiment_state", "empty part (recomputed)", run_exp, files={"s.yaml": BASE}, expect="ok", keep=("exp",),
+        setup=exp_then(lambda e: (e / "parts" / "ping000001.npz").write_bytes(b"")), timeout=120)
+    add("experiment_state", "empty manifest (parts say whose they are)", run_exp, files={"s.yaml": BASE},
+        expect="ok", keep=("exp",), setup=exp_then(lambda e: (e / "experiment.json").write_text("")), timeout=120)
+    add("experiment_state", "manifest deleted, parts of another scene", run_exp,
+        files={"s.yaml": BASE.replace("seed", "seed").replace("name: probe", "name: other\nseed: 99")},
+        keep=("exp",), timeout=120,
+        setup=lambda f: ((f / "s2.yaml").write_text(BASE),
+                         subprocess.run(ABACUS + ["experiment", "s2.yaml", "--pings", "2", "--workers", "0",
+                                                  "-o", "exp"], cwd=f, env=_env(), capture_output=True, check=True),
+                         (f / "exp" / "experiment.json").unlink()))
+    add("experiment_state", "a part with a wrong checksum (recomputed)", run_exp, files={"s.yaml": BASE},
+        expect="ok", keep=("exp",), timeout=120, setup=exp_then(_flip_byte))
+    add("experiment_state", "parts folder is a file", run_exp, files={"s.yaml": BASE}, keep=("exp",), timeout=120,
+        setup=exp_then(lambda e: (shutil.rmtree(e / "parts"), (e / "parts").write_text("x"))))
+
+    # --- interrupts: prompt, clean, and a later run completes
+    slow = scene("pings: {count: 400}\nsampling: {samples: 4096, time_offset_s: 0.0}\nnoise: {enabled: true}\n",
+                 base=BASE.replace("sampling: {samples: 1024, time_offset_s: 0.017}\n", ""))
+    for when in (0.8, 2.5, 5.0):
+        add("interrupts", f"SIGINT during simulate at {when} s", ["simulate", "s.yaml", "-o", "s.nc"],
+            files={"s.yaml": slow}, interrupt=(signal.SIGINT, when), status=130, timeout=60)
+    add("interrupts", "SIGINT during run", ["run", "s.yaml", "-o", "out"], files={"s.yaml": slow},
+        interrupt=(signal.SIGINT, 3.0), status=130, timeout=60)
+    add("interrupts", "SIGTERM during run", ["run", "s.yaml", "-o", "out"], files={"s.yaml": slow},
+        interrupt=(signal.SIGTERM, 3.0), status=143, timeout=60)
+    add("interrupts", "SIGINT during an experiment (then resumed)",
+        ["experiment", "s.yaml", "--pings", "40", "--workers", "0", "-o", "exp"], files={"s.yaml": slow},
+        interrupt=(signal.SIGINT, 4.0), status=130, timeout=60, keep=("exp",),
+        then=["experiment", "s.yaml", "--pings", "40", "--workers", "0", "-o", "exp"])
+    add("interrupts", "SIGKILL during simulate (then rerun)", ["simulate", "s.yaml", "-o", "s.nc"],
+        files={"s.yaml": slow}, interrupt=(signal.SIGKILL, 4.0), status=-9, timeout=60, keep=("s.nc",),
+        then=["simulate", "s.yaml", "-o", "s.nc", "--pings", "3"])
+    add("interrupts", "SIGKILL during run (then rerun)", ["run", "s.yaml", "-o", "out"], files={"s.yaml": slow},
+        interrupt=(signal.SIGKILL, 4.0), status=-9, timeout=60, keep=("out",),
+        then=["run", "s.yaml", "-o", "out", "--pings", "2", "--no-plots"])
+
+    # --- a full disk, and memory limits
+    add("resources", "simulate onto a 2 MB disk", ["simulate", "s.yaml", "-o", "disk/s.nc", "--pings", "10"],
+        files={"s.yaml": scene("sampling: {samples: 4096}\n")}, tmpfs_mb=2, keep=("disk",))
+    add("resources", "run onto a 2 MB disk", ["run", "s.yaml", "-o", "disk/out", "--pings", "10"],
+        files={"s.yaml": scene("sampling: {samples: 4096}\n")}, tmpfs_mb=2, keep=("disk",))
+    add("resources", "files limited to 1 MB (RLIMIT_FSIZE)", ["simulate", "s.yaml", "-o", "s.nc", "--pings", "10"],
+        files={"s.yaml": scene("sampling: {samples: 4096}\n")}, limits={"RLIMIT_FSIZE": 1 << 20})
+    add("resources", "alias bomb under a 1 GB address space", ["scene", "check", "s.yaml"],
+        files={"s.yaml": laughs}, limits={"RLIMIT_AS": 1 << 30})
+    add("resources", "count with a 100 MB memory limit", ["count", "d.nc", "--max-memory", "0.0001"],
+        files={"d.nc": _dataset("good")}, status=3)
+    return P
+
+
+def _flip_byte(exp: Path):
+    import numpy as np
+    import io
+    part = exp / "parts" / "ping000000.npz"
+    with np.load(part) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["seconds"] = np.asarray(float(arrays["seconds"]) + 1.0)   # contents no longer match
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    part.write_bytes(buf.getvalue())
+
+
+# ------------------------------------------------------------------ running one
+CACHE = Path(tempfile.gettempdir()) / "abacus-reliability"
+
+
+def _env(extra=None):
+    env = dict(os.environ, ABACUS_CACHE_DIR=str(CACHE / "geometry-cache"), MPLBACKEND="Agg",
+               PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    env.pop("ABACUS_ALLOW_OUTSIDE_FILES", None)
+    env.update(extra or {})
+    return env
+
+
+def _listing(folder: Path) -> set:
+    return {str(p.relative_to(folder)) for p in folder.rglob("*")} if folder.exists() else set()
+
+
+def _preexec(limits: dict):
+    def fn():
+        os.setsid()
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)   # a too-large write fails, not kills
+        for name, value in limits.items():
+            resource.setrlimit(getattr(resource, name), (value, value))
+    return fn
+
+
+def run_probe(probe: Probe) -> Result:
+    box = Path(tempfile.mkdtemp(prefix="probe-", dir=CACHE / "boxes"))
+    folder = box / "work"
+    folder.mkdir()
+    mounted = False
+    try:
+        for rel, content in probe.files.items():
+            path = folder / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            if callable(content):
+                content(path)
+            elif isinstance(content, bytes):
+                path.write_bytes(content)
+            else:
+                path.write_text(content)
+        if probe.setup:
+            probe.setup(folder)
+        if probe.tmpfs_mb:
+            (folder / "disk").mkdir()
+            r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={int(probe.tmpfs_mb * 1024)}k",
+                                "tmpfs", str(folder / "disk")], capture_output=True)
+            mounted = r.returncode == 0
+            if mounted and probe.readonly:
+                subprocess.run(["mount", "-o", "remount,ro", str(folder / "disk")], capture_output=True)
+            elif probe.readonly:   # not root: a folder without write permission stands in
+                os.chmod(folder / "disk", 0o555)
+            if not mounted:   # no permission to mount: a per-file size limit stands in
+                probe.limits = {**probe.limits, "RLIMIT_FSIZE": int(probe.tmpfs_mb * 1024 * 1024)}
+        before = _listing(folder)
+        outside_before = {p.name for p in box.iterdir()}
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(ABACUS + probe.argv, cwd=folder, env=_env(probe.env),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                preexec_fn=_preexec(probe.limits))
+        signalled_at = None
+        try:
+            if probe.interrupt:
+                sig, when = probe.interrupt
+                try:
+                    proc.wait(timeout=when)
+                except subprocess.TimeoutExpired:
+                    os.killpg(proc.pid, sig) if sig == signal.SIGKILL else proc.send_signal(sig)
+                    signalled_at = time.perf_counter()
+            out, err = proc.communicate(timeout=probe.timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+            return Result(probe, "hang", f"no exit within {probe.timeout:.0f} s", seconds=time.perf_counter() - t0)
+        seconds = time.perf_counter() - t0
+        rc = proc.returncode
+        after = _listing(folder)
+        new = sorted(p for p in after - before
+                     if not any(p == k or p.startswith(k + "/") for k in probe.keep))
+        temps = sorted(p for p in after if ".tmp-" in p or ".old-" in p)
+        lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+        leaks = SECRET in err or SECRET in out
+        outside = {p.name for p in box.iterdir()} - outside_before
+        if "Traceback" in err:
+            return Result(probe, "traceback", lines[-1][:200] if lines else "", err, seconds)
+        if leaks:
+            return Result(probe, "leak", "a file's contents appear in the output", err, seconds)
+        if outside:
+            return Result(probe, "outside", f"wrote outside its folder: {sorted(outside)}", err, seconds)
+        if signalled_at is not None and probe.interrupt[0] != signal.SIGKILL:
+            if time.perf_counter() - signalled_at > 5.0 + 0.5:
+                return Result(probe, "slow interrupt", "took over 5 s to stop", err, seconds)
+        if probe.status is not None and rc != probe.status and not (probe.interrupt and rc == 0):
+            return Result(probe, "wrong exit", f"exit {rc}, expected {probe.status}", err, seconds)
+        if probe.expect == "ok" and rc != 0:
+            return Result(probe, "refused control", f"exit {rc}", err, seconds)
+        if probe.expect == "refuse" and rc == 0 and not probe.interrupt:
+            return Result(probe, "silent", "accepted (exit 0)", err, seconds)
+        if probe.expect == "refuse" and len(lines) > 3:
+            return Result(probe, "unclear", f"{len(lines)} lines on stderr", err, seconds)
+        if temps:
+            return Result(probe, "partial output", f"temporaries left: {temps[:3]}", err, seconds)
+        if probe.expect == "refuse" and new and not (probe.interrupt and rc == 0):
+            return Result(probe, "partial output", f"left {new[:3]}", err, seconds)
+        if probe.then:
+            r = subprocess.run(ABACUS + probe.then, cwd=folder, env=_env(probe.env), capture_output=True,
+                               text=True, timeout=180)
+            if r.returncode != 0 or "Traceback" in r.stderr:
+                return Result(probe, "not resumable", f"the next run failed: {r.stderr.strip()[-200:]}",
+                              err, seconds)
+            temps = sorted(p for p in _listing(folder) if ".tmp-" in p or ".old-" in p)
+            if temps:
+                return Result(probe, "partial output", f"stale temporaries after the rerun: {temps[:3]}",
+                              err, seconds)
+        return Result(probe, "clean", "", err, seconds)
+    except Exception as exc:  # the harness itself failed: report, do not hide
+        return Result(probe, "harness error", f"{exc.__class__.__name__}: {exc}"[:300])
+    finally:
+        if mounted:
+            subprocess.run(["umount", "-l", str(folder / "disk")], capture_output=True)
+        for p in folder.rglob("*"):
+            try:
+                os.chmod(p, 0o755) if p.is_dir() else None
+            except OSError:
+                pass
+        shutil.rmtree(box, ignore_errors=True)
+
+
+def prepare():
+    """A good 1-ping dataset the dataset probes damage, and a warm geometry cache."""
+    (CACHE / "boxes").mkdir(parents=True, exist_ok=True)
+    good = CACHE / "good.nc"
+    if not good.exists():
+        (CACHE / "s.yaml").write_text(BASE)
+        subprocess.run(ABACUS + ["simulate", str(CACHE / "s.yaml"), "-o", str(good), "--overwrite"],
+                       check=True, env=_env(), capture_output=True)
+
+
+def run_all(classes=None, *, workers: int = 2) -> list[Result]:
+    prepare()
+    return run_probes([p for p in probes() if classes is None or p.cls in classes], workers=workers)
+
+
+def run_probes(todo, *, workers: int = 2) -> list[Result]:
+    """Run probes (two at a time, those that time themselves alone), in their order."""
+    # interrupts and disk probes time themselves: run them alone, the rest two at a time
+    timed = [p for p in todo if p.interrupt or p.tmpfs_mb]
+    rest = [p for p in todo if p not in timed]
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        results = list(pool.map(run_probe, rest))
+    results += [run_probe(p) for p in timed]
+    order = {p.name + p.cls: i for i, p in enumerate(todo)}
+    return sorted(results, key=lambda r: order[r.probe.name + r.probe.cls])
+
+
+def report(results) -> str:
+    classes = list(dict.fromkeys(r.probe.cls for r in results))
+    verdicts = ["traceback", "hang", "partial output", "silent", "leak", "outside", "wrong exit",
+                "unclear", "slow interrupt", "refused control", "not resumable", "harness error"]
+    rows = []
+    for c in classes:
+        rs = [r for r in results if r.probe.cls == c]
+        counts = {v: sum(r.verdict == v for r in rs) for v in verdicts}
+        other = sum(counts.values()) - counts["traceback"] - counts["hang"] - counts["partial output"] - counts["silent"]
+        rows.append(f"| {c} | {len(rs)} | {sum(r.verdict == 'clean' for r in rs)} | {counts['traceback']} | "
+                    f"{counts['hang']} | {counts['partial output']} | {counts['silent']} | {other} |")
+    total = len(results)
+    clean = sum(r.verdict == "clean" for r in results)
+    bad = [r for r in results if r.verdict != "clean"]
+    text = [
+        "# Reliability",
+        "",
+        "What `abacus` does with bad inputs, bad options, interrupts and full disks, regenerated by "
+        "`python benchmarks/reliability.py` (one class: `--only CLASS`). Every probe runs the command "
+        "line in a fresh folder. *Clean*: a refusal with a short message (at most 3 lines, no "
+        "traceback, no echo of a file the user did not write) and the documented exit status, "
+        "nothing left behind (no output, no temporary, nothing outside the folder) — or, for the "
+        "controls and the resumable cases, a success. Interrupts must stop within 5 s.",
+        "",
+        f"Machine: {os.cpu_count()} cores, Python {sys.version.split()[0]}. Generated "
+        f"{_dt.date.today().isoformat()}. **{clean} of {total} probes clean.**",
+        "",
+        "| class | tried | clean | traceback | hang | partial output | silently accepted | other |",
+        "|---|---|---|---|---|---|---|---|",
+        *rows,
+        "",
+        "## Exit statuses",
+        "",
+        "| status | meaning |", "|---|---|",
+        "| 0 | done |", "| 1 | an internal error (a bug): one line, the traceback in a log file it names |",
+        "| 2 | a bad scene, settings file, dataset, mesh or option: one line naming file, line, key and what is accepted |",
+        "| 3 | refused up front: the estimated memory or output exceeds the limit (`--max-memory`, `ABACUS_MAX_MEMORY_GB`, free disk) |",
+        "| 5 | the machine refused a write (disk full, permission): nothing half-written |",
+        "| 130 / 143 | interrupted (SIGINT) / terminated (SIGTERM): temporaries removed, within 5 s |",
+        "",
+        "## Rules the probes hold the code to",
+        "",
+        "- Outputs are never replaced without `--overwrite`; a missing output folder is an error (create it); "
+        "`abacus run` without `-o` writes `runs/<name>` with the scene's name reduced to letters, digits, "
+        "`-`, `_` and `.`; `abacus experiment -o DIR` resumes the same experiment, refuses another one "
+        "(its parts carry the experiment's identity, so even without a manifest) and refuses a folder of "
+        "other files; `--restart` discards.",
+        "- Everything is written to a hidden temporary next to its final name and renamed when complete "
+        "(`processing/atomic.py`); a killed process' temporaries are removed by the next write to the same "
+        "name; `abacus run` writes its numbers first and its figures after, each as a whole folder.",
+        "- Scene files: YAML without anchors or aliases, at most 1 MB and 32 levels deep, regular files only; "
+        "mesh and grid files only inside the scene's folder (`ABACUS_ALLOW_OUTSIDE_FILES=1` lifts it), at "
+        "most 256 MB; no message quotes a file's contents.",
+        "- Numbers: finite, within documented physical ranges (e.g. sound speed 1300–1800 m/s, f0 ≤ 10 MHz, "
+        "bandwidth ≤ sampling rate); targets and the sonar must be in the water; nothing non-finite is "
+        "written unless the variable's `nan_means` attribute says what it means.",
+        "",
+    ]
+    if bad:
+        text += ["## Probes that were not clean", "", "| class | probe | verdict | reason | stderr (last line) |",
+                 "|---|---|---|---|---|"]
+        for r in bad:
+            last = (r.stderr.strip().splitlines() or [""])[-1].replace("|", "\\|")[:160]
+            text.append(f"| {r.probe.cls} | {r.probe.name} | {r.verdict} | {r.reason.replace('|', '/')} | {last} |")
+        text.append("")
+    text += ["## Every probe", "", "| class | probe | verdict | seconds | message |", "|---|---|---|---|---|"]
+    for r in results:
+        last = (r.stderr.strip().splitlines() or [""])[-1].replace("|", "\\|")[:140]
+        text.append(f"| {r.probe.cls} | {r.probe.name} | {r.verdict} | {r.seconds:.1f} | {last} |")
+    return "\n".join(text) + "\n"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", nargs="*", help="probe classes to run")
+    ap.add_argument("--list", action="store_true", help="list the probes and exit")
+    ap.add_argument("-o", "--out", default=str(ROOT / "docs" / "reliability.md"))
+    args = ap.parse_args(argv)
+    if args.list:
+        for p in probes():
+            print(f"{p.cls:22s} {p.name}")
+        print(f"{len(probes())} probes")
+        return 0
+    results = run_all(set(args.only) if args.only else None)
+    text = report(results)
+    out = Path(args.out)
+    tmp = out.with_name(f".{out.name}.tmp")
+    tmp.write_text(text)
+    tmp.replace(out)
+    clean = sum(r.verdict == "clean" for r in results)
+    print(f"{clean} of {len(results)} clean; wrote {out}")
+    for r in results:
+        if r.verdict != "clean":
+            print(f"  {r.verdict:15s} {r.probe.cls}: {r.probe.name}: {r.reason}")
+    return 0 if clean == len(results) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
