@@ -11,7 +11,16 @@ import pytest
 os.environ.setdefault("MPLBACKEND", "Agg")
 # the geometry cache of a test session starts empty and lives in a temporary folder: tests never
 # see a user's cache, and subprocesses (the CLI) inherit the same folder
-os.environ.setdefault("ABACUS_CACHE_DIR", tempfile.mkdtemp(prefix="abacus-test-cache-"))
+_CACHE = None
+if "ABACUS_CACHE_DIR" not in os.environ:
+    _CACHE = tempfile.mkdtemp(prefix="abacus-test-cache-")
+    os.environ["ABACUS_CACHE_DIR"] = _CACHE
+
+
+def pytest_sessionfinish(session, exitstatus):
+    if _CACHE is not None:
+        import shutil
+        shutil.rmtree(_CACHE, ignore_errors=True)
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"

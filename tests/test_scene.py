@@ -213,8 +213,8 @@ def _warnings(path):
 
 
 def test_warns_on_grating_lobes_sampling_and_blind_zone(write_scene):
-    p = write_scene("name: t\nsampling: {rate_hz: 30000}\ntargets:\n  points:\n"
-                    "    - {range_m: 3, azimuth_deg: 0, elevation_deg: 0}\n")
+    p = write_scene("name: t\nsampling: {rate_hz: 30000}\nmedium: {sound_speed_m_s: 1530}\n"
+                    "targets:\n  points:\n    - {range_m: 3, azimuth_deg: 0, elevation_deg: 0}\n")
     w = _warnings(p)
     # the ABACUS preset's grating lobes are its design: a note of `scene check`, not a warning
     # every command repeats

@@ -48,11 +48,21 @@ def rayleigh_reflection(incidence_rad, *, density_ratio: float, speed_ratio: flo
     Returns
     -------
     ndarray, complex
-        R = (m cos θ − √(n² − sin² θ)) / (m cos θ + √(n² − sin² θ)); |R| = 1 beyond critical.
+        R = (m cos θ − s) / (m cos θ + s), s = k_2z / k_1 = √(n² − sin² θ); |R| = 1 beyond
+        critical.
+
+    Notes
+    -----
+    Beyond the critical angle s is imaginary, and the branch is physics, not convention: under
+    the project's e^{+jωt} (docs/conventions.md) the transmitted wave e^{j(ωt − k_2z z)} must
+    decay into the bottom (z > 0), so Im k_2z < 0 and s = −j √(sin² θ − n²). numpy's principal
+    square root gives +j: the growing wave, and R's complex conjugate. Here the root with
+    Im s ≤ 0 is taken, so arg R = 2 atan(√(sin² θ − n²) / (m cos θ)) ∈ (0, π) beyond critical.
     """
     th = np.asarray(incidence_rad, float)
     n = 1.0 / speed_ratio
     root = np.sqrt((n * n - np.sin(th) ** 2).astype(complex))
+    root = np.where(root.imag > 0, np.conj(root), root)   # the decaying branch (Im ≤ 0)
     m = density_ratio
     return (m * np.cos(th) - root) / (m * np.cos(th) + root)
 

@@ -93,7 +93,9 @@ class MediumSpec(ConfigModel):
     """Homogeneous water. Sound speed given, or by Mackenzie (1981) when null; absorption
     given (dB/m), or by Francois & Garrison (1982) at the carrier when null."""
 
-    sound_speed_m_s: PositiveReal | None = Field(preset.SOUND_SPEED_M_S, ge=1300.0, le=1800.0)
+    sound_speed_m_s: PositiveReal | None = Field(None, ge=1300.0, le=1800.0)
+    """c (m/s); null (the default): Mackenzie (1981) from temperature, salinity and depth, so the
+    speed follows the water as the absorption does. The thesis' scenes give 1530 explicitly."""
     absorption_db_per_m: NonNegativeReal | None = Field(None, le=100.0)
     temperature_c: Real = Field(10.0, ge=-2.0, le=40.0)
     salinity_psu: Real = Field(35.0, ge=0.0, le=45.0)
@@ -211,7 +213,7 @@ class Scene(ConfigModel):
                        (("temperature_c", 10.0), ("salinity_psu", 35.0), ("depth_m", 20.0), ("ph", 8.0)))
         f0 = sig.get("center_frequency_hz", preset.CENTER_FREQUENCY_HZ)
         if all(_is_num(v) for v in (t, s, d, ph, f0)) and f0 > 0 and s >= 0 and d >= 0:
-            if "sound_speed_m_s" in med and med["sound_speed_m_s"] is None:
+            if med.get("sound_speed_m_s") is None:
                 med["sound_speed_m_s"] = round(float(mackenzie_sound_speed_m_s(t, s, d)), 6)
             if med.get("absorption_db_per_m") is None:
                 # F&G with its own sound-speed fit, as the formula was calibrated

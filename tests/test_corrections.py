@@ -1,0 +1,77 @@
+"""Three physics corrections of the second wave, each against an independent derivation."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from acoustics.medium import mackenzie_sound_speed_m_s
+from acoustics.paths.scattering import rayleigh_reflection
+from acoustics.scene import scene_from_text
+
+M, CR = 1900.0 / 1027.0, 1700.0 / 1500.0        # a sand bottom: density ratio, speed ratio
+N = 1.0 / CR
+CRITICAL = np.arcsin(N)                            # incidence 61.9° from the normal (grazing 28.1°)
+
+
+def _boundary_solution(theta):
+    """R from the boundary conditions alone, e^{+jωt}, z down into the bottom.
+
+    p continuous: 1 + R = T; normal velocity v_z = −(1/jωρ) ∂p/∂z continuous:
+    (k1z/ρ1)(1 − R) = (k2z/ρ2) T. The transmitted wave e^{j(ωt − k2z z)} must not grow with z:
+    k2z = k1 √(n² − sin²θ) below critical, −j k1 √(sin²θ − n²) beyond it.
+    """
+    k1 = 1.0
+    k1z = k1 * np.cos(theta)
+    d = N**2 - np.sin(theta) ** 2
+    k2z = np.where(d >= 0, k1 * np.sqrt(np.abs(d)), -1j * k1 * np.sqrt(np.abs(d)))
+    rho1, rho2 = 1.0, M
+    out = []
+    for a, b in zip(np.atleast_1d(k1z), np.atleast_1d(k2z)):
+        A = np.array([[1.0, -1.0], [a / rho1, b / rho2]], complex)   # unknowns R, T
+        rhs = np.array([-1.0, a / rho1], complex)
+        out.append(np.linalg.solve(A, rhs)[0])
+    return np.array(out)
+
+
+def test_reflection_equals_the_boundary_value_solution_on_both_sides_of_critical():
+    theta = np.radians(np.linspace(0.0, 89.5, 180))
+    np.testing.assert_allclose(rayleigh_reflection(theta, density_ratio=M, speed_ratio=CR),
+                               _boundary_solution(theta), rtol=0, atol=1e-12)
+
+
+def test_beyond_critical_the_transmitted_wave_decays_and_the_phase_is_positive():
+    theta = np.radians(np.linspace(np.degrees(CRITICAL) + 0.5, 89.5, 50))
+    r = rayleigh_reflection(theta, density_ratio=M, speed_ratio=CR)
+    np.testing.assert_allclose(np.abs(r), 1.0, atol=1e-12)          # total reflection
+    # the vertical wavenumber ratio s = k2z/k1 implied by R: Im s < 0, so e^{−j k2z z} decays
+    s = M * np.cos(theta) * (1 - r) / (1 + r)
+    assert np.all(s.imag < 0)
+    expected = 2 * np.arctan(np.sqrt(np.sin(theta) ** 2 - N**2) / (M * np.cos(theta)))
+    np.testing.assert_allclose(np.angle(r), expected, atol=1e-12)   # in (0, π), not its negative
+    assert np.all(np.angle(r) > 0)
+
+
+def test_reflection_limits():
+    assert rayleigh_reflection(0.0, density_ratio=M, speed_ratio=CR) == pytest.approx(
+        (M * CR - 1) / (M * CR + 1), abs=1e-12)                     # (Z2 − Z1)/(Z2 + Z1)
+    assert rayleigh_reflection(np.radians(89.999), density_ratio=M, speed_ratio=CR) == pytest.approx(
+        -1.0, abs=1e-3)                                               # grazing
+    assert np.isfinite(rayleigh_reflection(np.pi / 2, density_ratio=M, speed_ratio=CR))
+
+
+def test_mackenzie_check_value():
+    """Mackenzie (1981), J. Acoust. Soc. Am. 70, 807: c = 1550.744 m/s at 25 °C, 35 ppt, 1000 m."""
+    assert float(mackenzie_sound_speed_m_s(25.0, 35.0, 1000.0)) == pytest.approx(1550.744, abs=1e-3)
+
+
+def test_sound_speed_follows_the_water_unless_given():
+    warm = scene_from_text("name: warm\nmedium: {temperature_c: 25, salinity_psu: 38, depth_m: 30}\n")
+    expected = float(mackenzie_sound_speed_m_s(25.0, 38.0, 30.0))
+    assert warm.medium.sound_speed_m_s == pytest.approx(expected, abs=1e-5)
+    assert warm.wavelength_m == pytest.approx(expected / warm.signal.center_frequency_hz)
+    assert abs(warm.medium.sound_speed_m_s - 1530.0) > 5      # not the old fixed value
+    given = scene_from_text("name: given\nmedium: {temperature_c: 25, sound_speed_m_s: 1500}\n")
+    assert given.medium.sound_speed_m_s == 1500.0
+    # the resolved scene states the speed, so it round-trips to the same number
+    again = scene_from_text(warm.resolved_text())
+    assert again.medium.sound_speed_m_s == warm.medium.sound_speed_m_s
