@@ -146,7 +146,10 @@ def detect_record(record, settings: ProcessingSettings, volume: CountingVolume, 
     def one(sl):
         sub = record_pings(record, sl)
         im = form_images(sub, settings.image, noise_band_hz=noise_band_hz)
-        det = detect_all(im, sub, st, volume, upsample=im.interpolation, pose=pose,
+        sub_pose = pose
+        if pose is not None and np.ndim(pose[1]) == 3:   # per-ping poses: this chunk's
+            sub_pose = (np.asarray(pose[0])[sl], np.asarray(pose[1])[sl])
+        det = detect_all(im, sub, st, volume, upsample=im.interpolation, pose=sub_pose,
                          noise_magnitudes=noise_magnitudes, noise=fit)
         det.table["ping"] = det.table["ping"] + sl.start
         kept = {k: im.pings(slice(k - sl.start, k - sl.start + 1)) for k in keep

@@ -159,7 +159,8 @@ def detect_all(images: Images, record, settings: DetectSettings, volume: Countin
     upsample : int
         The images' range interpolation factor.
     pose : (position_m (3,), rotation (3, 3)), optional
-        Sonar pose for world coordinates; identity if None.
+        Sonar pose for world coordinates; identity if None; per ping (shapes (n_pings, 3) and
+        (n_pings, 3, 3)) for a moving platform.
     noise_magnitudes : ndarray, optional
         |I| of a noise-only dataset (settings.noise.source == "noise_file").
     noise : RayleighFit, optional
@@ -294,6 +295,7 @@ def candidates(images: Images, record, settings: DetectSettings, per_ping, volum
         describe a pool that :func:`select` then filters for each.
     volume : CountingVolume
     pose : (position_m (3,), rotation (3, 3)), optional
+        Or one per ping: (n_pings, 3) and (n_pings, 3, 3).
 
     Returns
     -------
@@ -357,7 +359,13 @@ def _describe(images, record, img, mags, ping, row, beam, volume, pose):
         clipped = np.zeros(n, bool)
         pos = np.stack([rng * np.sin(az), np.zeros(n), rng * np.cos(az)], -1) if n else np.zeros((0, 3))
     position, rotation = pose if pose is not None else (np.zeros(3), np.eye(3))
-    world = to_world(pos, position, rotation) if n else np.zeros((0, 3))
+    position, rotation = np.asarray(position, float), np.asarray(rotation, float)
+    if not n:
+        world = np.zeros((0, 3))
+    elif rotation.ndim == 3:   # a moving platform: each detection in its own ping's pose
+        world = np.einsum("nij,nj->ni", rotation[ping], pos) + position[ping]
+    else:
+        world = to_world(pos, position, rotation)
     out.update({"psi_rad": ps, "elevation_rad": el, "elevation_clipped": clipped,
                 "x_m": pos[:, 0], "y_m": pos[:, 1], "z_m": pos[:, 2],
                 "world_x_m": world[:, 0], "world_y_m": world[:, 1], "world_z_m": world[:, 2],

@@ -263,12 +263,16 @@ def pose_of(tree):
     Returns
     -------
     (position_m, rotation) or None
-        ``position_m`` shape (3,) (m, world frame: x forward, y starboard, z down);
-        ``rotation`` shape (3, 3), columns the sonar axes in world coordinates. None when
-        the dataset has no pose (sonar frame = world frame).
+        ``position_m`` shape (3,) (m, world frame: x forward, y starboard, z down) and
+        ``rotation`` shape (3, 3), columns the sonar axes in world coordinates; for a moving
+        platform one per ping: shapes (n_pings, 3) and (n_pings, 3, 3). None when the dataset
+        has no pose (sonar frame = world frame).
     """
     if "Platform" in tree.children and "sonar_rotation" in tree["Platform"].ds:
         ds = tree["Platform"].ds
+        if "ping_sonar_rotation" in ds:
+            return (ds["ping_sonar_position"].values.astype(float),
+                    ds["ping_sonar_rotation"].values.astype(float))
         return ds["sonar_position"].values.astype(float), ds["sonar_rotation"].values.astype(float)
     return None
 

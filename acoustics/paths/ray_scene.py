@@ -242,11 +242,12 @@ class RayScene:
         return self._mesh_target_scatterers
 
 
-def build_ray_scene(scene, setup) -> RayScene | None:
-    """The ray-traced scene of a run, or None when the scene has no meshes (no caster built)."""
+def build_ray_scene(scene, setup, pose=None) -> RayScene | None:
+    """The ray-traced scene of a run (in the sonar frame of ``pose``, default the mounting
+    pose), or None when the scene has no meshes (no caster built)."""
     if not scene.boundaries and not scene.targets.meshes:
         return None
-    meshes: list[SceneMesh] = scene_meshes(scene, setup.sonar.pose)
+    meshes: list[SceneMesh] = scene_meshes(scene, pose if pose is not None else setup.sonar.pose)
     caster = RayCaster(meshes, threads=scene.effects.ray_threads)
     planes = {}
     for i, sm in enumerate(meshes):

@@ -139,6 +139,11 @@ def _region_samples(pop, pose) -> np.ndarray:
         pts = np.stack([X.ravel(), Y.ravel(), Z.ravel()], -1)
         return pts if pop.frame == "world" else pose.to_world(pts)
     from acoustics.frames import spherical_to_cartesian
+    if pop.kind == "school":
+        from acoustics.targets.schools import ellipsoid_axes
+        u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 13), np.linspace(-np.pi / 2, np.pi / 2, 7))
+        unit = np.stack([np.cos(v) * np.cos(u), np.cos(v) * np.sin(u), np.sin(v)], -1).reshape(-1, 3)
+        return np.asarray(pop.center_m) + (unit * np.asarray(pop.semi_axes_m)) @ ellipsoid_axes(pop.heading).T
     (r0, r1), (a0, a1), (e0, e1) = pop.range_m, pop.azimuth, pop.elevation
     R, A, E = np.meshgrid(r0 + g * (r1 - r0), a0 + g * (a1 - a0), e0 + g * (e1 - e0), indexing="ij")
     return pose.to_world(spherical_to_cartesian(R.ravel(), A.ravel(), E.ravel()))

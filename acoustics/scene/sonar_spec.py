@@ -7,6 +7,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
+from acoustics.scene.motion_spec import PlatformMotionSpec
 from acoustics.sonar import preset
 from acoustics.sonar.arrays import ElementArray
 from processing.config import AngleDeg, ConfigModel, Count, PositiveCount, PositiveReal, Real, Vec3
@@ -166,6 +167,8 @@ class SonarSpec(ConfigModel):
     """interferometric: middle 8 of A and B, two images; normal: 16 of A; combined:
     8 + 8 as one image."""
     pose: PoseSpec = PoseSpec()
+    motion: PlatformMotionSpec | None = None
+    """The platform's attitude and heave per ping (roll, pitch, yaw, heave); none: it is still."""
 
     @model_validator(mode="before")
     @classmethod

@@ -8,11 +8,12 @@ import numpy as np
 from pydantic import Discriminator, Field, Tag, model_validator
 
 from acoustics.scene.meshes_spec import MeshTargetSpec
+from acoustics.scene.motion_spec import SwimSpec
 from processing.config import (AngleDeg, AngleRangeDeg, ConfigModel, Count, NonNegativeReal,
                                PositiveReal, Real, Vec3)
 
 __all__ = ["UnitTS", "FixedTS", "RayleighTS", "Backscatter", "PointTarget", "CuboidPopulation",
-           "SectorPopulation", "Population", "TargetsSpec", "Interval"]
+           "SectorPopulation", "SchoolPopulation", "Population", "TargetsSpec", "Interval"]
 
 Interval = tuple[Real, Real]
 
@@ -61,6 +62,10 @@ class PointTarget(ConfigModel):
     azimuth: AngleDeg(-180, 180) | None = Field(None, alias="azimuth_deg")
     elevation: AngleDeg(-90, 90) | None = Field(None, alias="elevation_deg")
     position_m: Vec3 | None = None
+    velocity_m_s: Vec3 | None = None
+    """World-frame velocity (m/s): the target starts where it is at ping 0 and moves in a straight
+    line. Without it a sonar-frame target stays put relative to the sonar, a world-frame one in
+    the world."""
     backscatter: Backscatter = UnitTS()
     random_phase: bool = False
     """Give the echo a uniformly random phase (seeded per ping)."""
@@ -83,10 +88,13 @@ class PointTarget(ConfigModel):
 
 
 class _Population(ConfigModel):
-    count: Count | None = None
-    density_per_m3: NonNegativeReal | None = None
+    count: Count | None = Field(None, le=100_000_000)
+    density_per_m3: NonNegativeReal | None = Field(None, le=1e6)
     redraw: bool = True
-    """Draw new positions every ping (true) or keep one draw for the whole run."""
+    """Draw new positions every ping (true) or keep one draw for the whole run (false: the
+    targets keep their identities; needed for ``swim``)."""
+    swim: SwimSpec | None = None
+    """The targets swim (see :class:`~acoustics.scene.motion_spec.SwimSpec`)."""
     backscatter: Backscatter = UnitTS()
     random_phase: bool = False
     label: str = ""
@@ -95,6 +103,9 @@ class _Population(ConfigModel):
     def _count_or_density(self):
         if (self.count is None) == (self.density_per_m3 is None):
             raise ValueError("give exactly one of count or density_per_m3")
+        if self.swim is not None and self.redraw:
+            raise ValueError("a swimming population keeps its fish from ping to ping: set "
+                             "redraw: false (redraw: true draws new positions every ping)")
         return self
 
 
@@ -142,8 +153,43 @@ class SectorPopulation(_Population):
         return (r1**3 - r0**3) / 3.0 * (a1 - a0) * (math.sin(e1) - math.sin(e0))
 
 
+class SchoolPopulation(_Population):
+    """A school: targets uniform inside an ellipsoid of the world frame, at least
+    ``nearest_neighbour_m`` apart (a hard core, as fish keep a body length or so between them),
+    the ellipsoid's first axis along ``heading_deg`` in the horizontal plane. With ``swim`` the
+    school's fish swim (its default heading is the school's)."""
+
+    kind: Literal["school"] = "school"
+    center_m: Vec3
+    """Centre (m), world frame (z is depth)."""
+    semi_axes_m: tuple[PositiveReal, PositiveReal, PositiveReal]
+    """Semi-axes (m): along the heading, across it (horizontal), vertical."""
+    heading: AngleDeg(-360, 360) = Field(0.0, alias="heading_deg")
+    nearest_neighbour_m: NonNegativeReal = Field(0.0, le=100.0)
+    """Minimum distance between two fish (m); 0: none."""
+
+    @property
+    def volume_m3(self) -> float:
+        a, b, c = self.semi_axes_m
+        return 4.0 / 3.0 * math.pi * a * b * c
+
+    @model_validator(mode="after")
+    def _packable(self):
+        d = self.nearest_neighbour_m
+        n = self.count if self.count is not None else self.density_per_m3 * self.volume_m3
+        # random sequential packing of hard spheres jams near 38 % of the volume; beyond ~25 %
+        # the rejection sampler would crawl: refuse what cannot be drawn
+        fraction = n * (math.pi / 6.0) * d**3 / self.volume_m3
+        if d > 0 and fraction > 0.25:
+            raise ValueError(f"{n:.4g} fish at least {d:g} m apart fill {fraction:.0%} of the "
+                             f"school's volume as hard spheres: at most 25 % can be drawn; lower "
+                             f"the count or density, or nearest_neighbour_m")
+        return self
+
+
 Population = Annotated[Union[Annotated[CuboidPopulation, Tag("uniform_cuboid")],
-                             Annotated[SectorPopulation, Tag("uniform_sector")]],
+                             Annotated[SectorPopulation, Tag("uniform_sector")],
+                             Annotated[SchoolPopulation, Tag("school")]],
                        Discriminator("kind")]
 
 

@@ -81,6 +81,28 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.Da
         "sonar_rotation": xr.DataArray(pose.rotation, dims=("world_axis", "sonar_axis"),
                                        attrs={"long_name": "columns: sonar axes x_s, y_s, z_s in world coordinates"})},
         coords={"world_axis": ["x", "y", "z"], "sonar_axis": ["x", "y", "z"]})
+    if setup.platform is not None:
+        # a moving platform: the pose of every ping, and the attitude it came from
+        poses = [setup.pose_at(p) for p in pings]
+        roll, pitch, yaw, heave = setup.platform.attitude(np.asarray(pings, float) * setup.interval_s)
+        platform_ds["ping_sonar_position"] = xr.DataArray(
+            np.stack([q.position_m for q in poses]), dims=("ping_time", "world_axis"),
+            attrs={"units": "m", "long_name": "sonar-frame origin in the world frame, per ping"})
+        platform_ds["ping_sonar_rotation"] = xr.DataArray(
+            np.stack([q.rotation for q in poses]), dims=("ping_time", "world_axis", "sonar_axis"),
+            attrs={"long_name": "columns: sonar axes in world coordinates, per ping"})
+        for name, v, units in (("roll", roll, "arc_degree"), ("pitch", pitch, "arc_degree"),
+                               ("heading", yaw, "arc_degree"), ("vertical_offset", heave, "m")):
+            vv = np.degrees(v) if units == "arc_degree" else np.asarray(v, float)
+            platform_ds[name] = xr.DataArray(np.broadcast_to(vv, (len(pings),)).copy(), dims="ping_time",
+                                             attrs={"units": units, "long_name": {
+                                                 "roll": "roll, starboard down positive",
+                                                 "pitch": "pitch, bow up positive",
+                                                 "heading": "yaw (heading change), clockwise from above positive",
+                                                 "vertical_offset": "heave, positive up"}[name]})
+        platform_ds = platform_ds.assign_coords(ping_time=_ping_times(scene, pings))
+        platform_ds.attrs["mount"] = ("sonar_position/sonar_rotation: the mounting pose at rest; "
+                                      "ping_sonar_*: the pose of each ping")
 
     tx = sonar.transmitter
     replica = pulse.replica(s.rate_hz)
@@ -169,10 +191,13 @@ def _truth(setup, pings, ping_time, truth) -> xr.Dataset:
         ph = np.concatenate([t.phase_rad for t in truth])
         grp = np.concatenate([t.group for t in truth])
         shd = np.concatenate([t.shadowed if t.shadowed is not None else np.zeros(len(t), bool) for t in truth])
+        tid = np.concatenate([t.target_id if t.target_id is not None else np.full(len(t), -1) for t in truth])
+        vel = np.concatenate([t.velocity_world_m_s if t.velocity_world_m_s is not None
+                              else np.zeros((len(t), 3)) for t in truth])
     else:
-        ps = pw = np.zeros((0, 3))
+        ps = pw = vel = np.zeros((0, 3))
         rho = ph = np.zeros(0)
-        grp = np.zeros(0, int)
+        grp = tid = np.zeros(0, int)
         shd = np.zeros(0, bool)
     r, az, el = cartesian_to_spherical(ps)
     volume = setup.counting_volume
@@ -196,6 +221,12 @@ def _truth(setup, pings, ping_time, truth) -> xr.Dataset:
                                                                 "nan_means": "-inf: rho = 0 (no echo)"}),
          "target_phase": xr.DataArray(ph, dims="target", attrs={"units": "rad"}),
          "target_group": xr.DataArray(grp, dims="target", attrs={"long_name": "-1 explicit point, else population index"}),
+         "target_id": xr.DataArray(tid.astype(np.int64), dims="target", attrs={
+             "long_name": "identity: point i is i, fish k of population j is (j + 1) x 1e6 + k; "
+                          "persistent across pings for points and populations with redraw: false"}),
+         "target_velocity_world_x": xr.DataArray(vel[:, 0], dims="target", attrs={"units": "m/s", "frame": "world"}),
+         "target_velocity_world_y": xr.DataArray(vel[:, 1], dims="target", attrs={"units": "m/s", "frame": "world"}),
+         "target_velocity_world_z": xr.DataArray(vel[:, 2], dims="target", attrs={"units": "m/s", "frame": "world (depth rate)"}),
          "target_in_counting_volume": xr.DataArray(inside.astype(np.int8), dims="target"),
          "target_shadowed": xr.DataArray(shd.astype(np.int8), dims="target",
                                          attrs={"long_name": "1 where a mesh blocks the direct path (no direct echo)"}),

@@ -37,10 +37,11 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
     log = log if log is not None else StageLog()
     s, fx = scene.sampling, scene.effects
     n_ch = setup.sonar.n_channels
+    pose = setup.pose_at(ping)
     with log.stage("targets"):
-        targets = draw_targets(scene, ping, setup.sonar.pose, seed=seed)
+        targets = draw_targets(scene, ping, pose, seed=seed)
     strength = targets.rho_m * np.exp(1j * targets.phase_rad)
-    rs = setup.ray_scene
+    rs = setup.ray_scene_at(scene, pose, log)
     shadowed = np.zeros(len(targets), bool)
     if rs is not None and fx.occlusion and len(targets):
         with log.stage("occlusion"):

@@ -6,7 +6,7 @@ the same file hit the cache.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -19,7 +19,17 @@ from acoustics.sonar.pulse import Pulse
 from acoustics.synthesis.arrivals import EchoModel
 from processing.counting import CountingVolume, counting_volume
 
-__all__ = ["Setup", "make_setup", "counting_volume_of"]
+__all__ = ["Setup", "make_setup", "counting_volume_of", "pose_at_time_zero"]
+
+
+def pose_at_time_zero(scene):
+    """The sonar's world pose at ping 0 (t = 0): where moving targets given relative to the
+    sonar start from."""
+    sonar = build_sonar(scene)
+    if scene.sonar.motion is None:
+        return sonar.pose
+    from acoustics.sonar.platform import PlatformMotion
+    return PlatformMotion.from_spec(scene.sonar.motion, scene.resolve_path).pose(sonar.pose, 0.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -34,6 +44,31 @@ class Setup:
     tx_beamwidth_el_rad: float
     counting_range_m: tuple
     ray_scene: object = None
+    platform: object = None
+    """:class:`~acoustics.sonar.platform.PlatformMotion` of a moving platform, else None."""
+    interval_s: float = 1.0
+    _moving_rays: dict = field(default_factory=dict, repr=False)
+
+    def pose_at(self, ping: int):
+        """The sonar's world pose at ping ``ping`` (the mounting pose when nothing moves)."""
+        if self.platform is None:
+            return self.sonar.pose
+        return self.platform.pose(self.sonar.pose, ping * self.interval_s)
+
+    def ray_scene_at(self, scene, pose, log: StageLog | None = None):
+        """The ray-traced scene in the sonar frame of ``pose``: the run's own when the platform
+        is still, else built for this pose (Embree works in the sonar frame, so a moving sonar
+        needs its meshes placed anew; the last pose's scene is kept)."""
+        if self.ray_scene is None or self.platform is None:
+            return self.ray_scene
+        key = pose.position_m.tobytes() + pose.rotation.tobytes()
+        if key not in self._moving_rays:
+            from acoustics.paths.ray_scene import build_ray_scene
+            self._moving_rays.clear()
+            log = log if log is not None else StageLog()
+            with log.stage("rays_build"):
+                self._moving_rays[key] = build_ray_scene(scene, self, pose)
+        return self._moving_rays[key]
 
     @property
     def counting_volume(self) -> CountingVolume:
@@ -69,7 +104,12 @@ def make_setup(scene, log: StageLog | None = None) -> Setup:
     if rng_m is None:
         c, s = medium.sound_speed_m_s, scene.sampling
         rng_m = (c * s.time_offset_s / 2, c * (s.time_offset_s + s.samples / s.rate_hz) / 2)
-    setup = Setup(sonar, medium, pulse, model, az, el, tuple(float(r) for r in rng_m))
+    platform = None
+    if scene.sonar.motion is not None:
+        from acoustics.sonar.platform import PlatformMotion
+        platform = PlatformMotion.from_spec(scene.sonar.motion, scene.resolve_path)
+    setup = Setup(sonar, medium, pulse, model, az, el, tuple(float(r) for r in rng_m),
+                  platform=platform, interval_s=scene.pings.interval_s)
     if scene.boundaries or scene.targets.meshes:
         from acoustics.paths.ray_scene import build_ray_scene
         log = log if log is not None else StageLog()

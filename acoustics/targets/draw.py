@@ -20,7 +20,7 @@ import numpy as np
 from acoustics.frames import Pose, spherical_to_cartesian
 from acoustics.seeds import FIXED, ping_rng
 
-__all__ = ["TargetSet", "draw_targets", "point_positions_sonar", "draw_backscatter"]
+__all__ = ["TargetSet", "draw_targets", "point_positions_sonar", "draw_backscatter", "ID_BLOCK"]
 
 @dataclass(frozen=True, eq=False)
 class TargetSet:
@@ -38,6 +38,11 @@ class TargetSet:
         Extra echo phase (rad); 0 unless the target asks for a random phase.
     group : ndarray of int, shape (n,)
         -1 for explicit points, else the index of the population.
+    target_id : ndarray of int, shape (n,), optional
+        Identity: explicit point i is i; fish k of population j is (j + 1) x 10⁶ + k. Persistent
+        from ping to ping for points and for populations with ``redraw: false``.
+    velocity_world_m_s : ndarray, shape (n, 3), optional
+        World-frame velocity (m/s); zeros for targets that hold their place.
     shadowed : ndarray of bool, shape (n,), optional
         A mesh blocks the direct path.
     """
@@ -47,6 +52,8 @@ class TargetSet:
     rho_m: np.ndarray
     phase_rad: np.ndarray
     group: np.ndarray
+    target_id: np.ndarray | None = None
+    velocity_world_m_s: np.ndarray | None = None
     shadowed: np.ndarray | None = None
     """Whether a mesh blocks the target's direct path (set by the simulation; None before)."""
 
@@ -56,7 +63,8 @@ class TargetSet:
     @classmethod
     def empty(cls) -> "TargetSet":
         z = np.zeros((0, 3))
-        return cls(z, z.copy(), np.zeros(0), np.zeros(0), np.zeros(0, int))
+        return cls(z, z.copy(), np.zeros(0), np.zeros(0), np.zeros(0, int), np.zeros(0, np.int64),
+                   z.copy())
 
 
 def point_positions_sonar(points, pose: Pose) -> np.ndarray:
@@ -88,7 +96,11 @@ def draw_backscatter(model, n: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def _population_positions(pop, n: int, rng: np.random.Generator, pose: Pose):
-    """(sonar-frame, world-frame) positions of ``n`` uniform targets of a population."""
+    """(sonar-frame, world-frame) positions of ``n`` targets of a population."""
+    if pop.kind == "school":
+        from acoustics.targets.schools import draw_school
+        pw = draw_school(pop, n, rng)
+        return pose.to_sonar(pw), pw
     if pop.kind == "uniform_cuboid":
         lo = np.array([pop.x_m[0], pop.y_m[0], pop.z_m[0]])
         hi = np.array([pop.x_m[1], pop.y_m[1], pop.z_m[1]])
@@ -105,6 +117,10 @@ def _population_positions(pop, n: int, rng: np.random.Generator, pose: Pose):
     return p, pose.to_world(p)
 
 
+#: population j's fish k has identity (j + 1) x ID_BLOCK + k
+ID_BLOCK = 1_000_000
+
+
 def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None) -> TargetSet:
     """All point targets of one ping of a scene.
 
@@ -112,9 +128,10 @@ def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None) -> Ta
     ----------
     scene : Scene
     ping : int
-        Ping index (the seed's second component).
+        Ping index (the seed's second component; the time t = ping x ``pings.interval_s`` of
+        moving targets).
     pose : Pose
-        The sonar's pose (for frame conversions).
+        The sonar's pose at this ping (for frame conversions).
     seed : int, optional
         Overrides ``scene.seed``.
 
@@ -122,21 +139,37 @@ def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None) -> Ta
     -------
     TargetSet
     """
+    from acoustics.targets.motion import swim_trajectory
     seed = scene.seed if seed is None else int(seed)
     spec = scene.targets
-    parts_s, parts_w, rhos, phases, groups = [], [], [], [], []
+    t = ping * scene.pings.interval_s
+    parts_w, parts_s, vels, rhos, phases, groups, ids = [], [], [], [], [], [], []
     if spec.points:
         ps = point_positions_sonar(spec.points, pose)
+        pw = pose.to_world(ps)
+        v = np.zeros((len(spec.points), 3))
+        moving = [i for i, tp in enumerate(spec.points) if tp.velocity_m_s is not None]
+        if moving:
+            # a moving point starts where it is at ping 0 (in the ping-0 pose's world) and goes
+            # straight: x(t) = x(0) + v t
+            from acoustics.simulation.setup import pose_at_time_zero
+            p0 = pose_at_time_zero(scene)
+            for i in moving:
+                v[i] = spec.points[i].velocity_m_s
+                pw[i] = p0.to_world(point_positions_sonar([spec.points[i]], p0))[0] + v[i] * t
+            ps = pose.to_sonar(pw)
         parts_s.append(ps)
-        parts_w.append(pose.to_world(ps))
+        parts_w.append(pw)
+        vels.append(v)
         rng_b = ping_rng(seed, ping, "backscatter", 0)
         rng_p = ping_rng(seed, ping, "phase", 0)
-        rho = np.array([draw_backscatter(t.backscatter, 1, rng_b)[0] for t in spec.points])
+        rho = np.array([draw_backscatter(tp.backscatter, 1, rng_b)[0] for tp in spec.points])
         ph = rng_p.uniform(-np.pi, np.pi, len(spec.points))
-        ph = np.where([t.random_phase for t in spec.points], ph, 0.0)
+        ph = np.where([tp.random_phase for tp in spec.points], ph, 0.0)
         rhos.append(rho)
         phases.append(ph)
         groups.append(np.full(len(spec.points), -1))
+        ids.append(np.arange(len(spec.points), dtype=np.int64))
     for j, pop in enumerate(spec.populations, start=1):
         pos_ping = ping if pop.redraw else FIXED
         if pop.count is not None:
@@ -144,13 +177,25 @@ def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None) -> Ta
         else:
             n = int(ping_rng(seed, pos_ping, "count", j).poisson(pop.density_per_m3 * pop.volume_m3))
         ps, pw = _population_positions(pop, n, ping_rng(seed, pos_ping, "positions", j), pose)
+        v = np.zeros((n, 3))
+        if pop.swim is not None:
+            if pop.kind != "school" and getattr(pop, "frame", "world") != "world":
+                # start from the ping-0 world positions (a sonar-frame region at the mount pose)
+                from acoustics.simulation.setup import pose_at_time_zero
+                pw = pose_at_time_zero(scene).to_world(ps)
+            pw, v = swim_trajectory(pop.swim, pw, seed=seed, group=j,
+                                    interval_s=scene.pings.interval_s, ping=ping)
+            ps = pose.to_sonar(pw)
         parts_s.append(ps)
         parts_w.append(pw)
+        vels.append(v)
         rhos.append(draw_backscatter(pop.backscatter, n, ping_rng(seed, ping, "backscatter", j)))
         ph = ping_rng(seed, ping, "phase", j).uniform(-np.pi, np.pi, n)
         phases.append(ph if pop.random_phase else np.zeros(n))
         groups.append(np.full(n, j - 1))
+        ids.append(j * ID_BLOCK + np.arange(n, dtype=np.int64))
     if not parts_s:
         return TargetSet.empty()
     return TargetSet(np.concatenate(parts_s), np.concatenate(parts_w), np.concatenate(rhos),
-                     np.concatenate(phases), np.concatenate(groups).astype(int))
+                     np.concatenate(phases), np.concatenate(groups).astype(int),
+                     np.concatenate(ids), np.concatenate(vels))

@@ -1,0 +1,159 @@
+"""Scenes in motion: targets that swim, schools, a platform that rolls and pitches."""
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+import acoustics
+import processing
+from acoustics.scene import SceneWarning, scene_from_text
+from acoustics.targets.schools import nearest_neighbour_m
+
+QUIET = "name: motion\nmedium: {sound_speed_m_s: 1530}\n"
+
+
+def scene(text):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SceneWarning)
+        return scene_from_text(QUIET + text)
+
+
+def truth(tree):
+    gt = tree["Simulation/Ground_truth"].ds
+    return {k: gt[k].values for k in gt.data_vars}
+
+
+# ------------------------------------------------------------------ targets that move
+def test_a_moving_point_is_where_its_velocity_takes_it():
+    """x(t_p) = x(0) + v t_p exactly, t_p = p x interval."""
+    sc = scene("pings: {interval_s: 0.5}\ntargets:\n  points:\n"
+               "    - {frame: world, position_m: [0.3, -2.0, 20.0], velocity_m_s: [0.1, 0.8, -0.05]}\n")
+    t = truth(acoustics.simulate(sc, pings=range(12)))
+    p = np.arange(12) * 0.5
+    expected = np.array([0.3, -2.0, 20.0]) + p[:, None] * np.array([0.1, 0.8, -0.05])
+    got = np.stack([t["target_world_x"], t["target_world_y"], t["target_world_z"]], -1)
+    np.testing.assert_allclose(got, expected, atol=1e-12)
+    assert np.all(t["target_id"] == 0)
+
+
+SCHOOL = """pings: {interval_s: 1.0}
+targets:
+  populations:
+    - kind: school
+      center_m: [0.0, 0.0, 20.0]
+      semi_axes_m: [3.0, 2.0, 1.0]
+      heading_deg: 30
+      count: 40
+      nearest_neighbour_m: 0.3
+      redraw: false
+      swim: {speed_m_s: 0.8, speed_sd_m_s: 0.2, heading_deg: 30, polarisation: 0.9,
+             turn_sd_deg_per_s: 20, vertical_sd_m_s: 0.02, substeps: 1}
+"""
+
+
+def test_positions_after_n_pings_are_the_integrated_motion():
+    """Each fish keeps its identity, and its displacement from one ping to the next is its
+    velocity times the interval (the velocity is constant within a step): after N pings the
+    position is x(0) plus the sum of those steps."""
+    t = truth(acoustics.simulate(scene(SCHOOL), pings=range(8)))
+    n = 40
+    ids = t["target_id"].reshape(8, n)
+    assert np.all(ids == ids[0]) and len(set(ids[0])) == n
+    pos = np.stack([t["target_world_x"], t["target_world_y"], t["target_world_z"]], -1).reshape(8, n, 3)
+    vel = np.stack([t["target_velocity_world_x"], t["target_velocity_world_y"],
+                    t["target_velocity_world_z"]], -1).reshape(8, n, 3)
+    integrated = pos[0] + np.cumsum(vel[:-1] * 1.0, axis=0)
+    np.testing.assert_allclose(pos[1:], integrated, atol=1e-9)
+    speed = np.linalg.norm(vel[..., :2], axis=-1)
+    assert np.allclose(speed, speed[0])                       # speeds persist, headings turn
+    heading = np.arctan2(vel[..., 1], vel[..., 0])
+    assert np.std(np.diff(np.unwrap(heading, axis=0), axis=0)) == pytest.approx(math.radians(20), rel=0.3)
+
+
+def test_a_ping_alone_is_the_same_ping_of_a_run():
+    """Ping independence survives motion: ping 6 alone puts every fish where a full run does."""
+    sc = scene(SCHOOL)
+    full = truth(acoustics.simulate(sc, pings=range(7)))
+    alone = truth(acoustics.simulate(sc, pings=[6]))
+    k = full["target_ping_index"] == 6
+    for key in ("target_world_x", "target_world_y", "target_world_z", "target_id"):
+        np.testing.assert_array_equal(alone[key], full[key][k])
+
+
+def test_swimming_needs_persistent_fish():
+    with pytest.raises(acoustics.SceneError, match="redraw: false"):
+        scene("targets:\n  populations:\n    - {kind: uniform_cuboid, x_m: [-1,1], y_m: [-1,1], "
+              "z_m: [15,16], count: 3, swim: {speed_m_s: 1}}\n")
+
+
+def test_swimmers_stay_in_the_water():
+    sc = scene("targets:\n  populations:\n    - {kind: school, center_m: [0,0,0.5], semi_axes_m: [1,1,0.3], "
+               "count: 20, redraw: false, swim: {speed_m_s: 0.1, vertical_sd_m_s: 0.5}}\n")
+    t = truth(acoustics.simulate(sc, pings=range(10)))
+    assert np.all(t["target_world_z"] >= 0)
+
+
+# ------------------------------------------------------------------ the platform
+def _detected_angles(sc):
+    tree = processing.count(acoustics.simulate(sc), {"detect": {"method": "fraction_of_peak",
+                                                                "fraction": 0.5}})
+    det = processing.detections_of(tree)
+    out = []
+    for p in range(tree["Processing/Counts"].sizes["ping_time"]):
+        k = det["ping"].values == p
+        i = int(np.argmax(det["amplitude"].values[k]))
+        out.append((float(det["azimuth_rad"].values[k][i]), float(det["elevation_rad"].values[k][i]),
+                    np.array([det[f"world_{a}_m"].values[k][i] for a in "xyz"])))
+    return out
+
+
+def test_platform_roll_moves_an_on_axis_target_by_the_roll_angle():
+    """Mounted looking down, receiver athwartships: rolling starboard-down by 3° turns the
+    receiver axis down and the boresight to port, so a target fixed in the world below the sonar
+    appears at azimuth +3° (x_s = 20 sin 3°, z_s = 20 cos 3°); its world position is unchanged."""
+    sc = scene("pings: {count: 2}\nsonar: {motion: {kind: series, series: {time_s: [0, 1], "
+               "roll_deg: [0, 3]}}}\ntargets:\n  points:\n    - {frame: world, position_m: [0, 0, 20]}\n")
+    (az0, _, w0), (az1, _, w1) = _detected_angles(sc)
+    assert math.degrees(az0) == pytest.approx(0.0, abs=0.05)
+    assert math.degrees(az1) == pytest.approx(3.0, abs=0.05)
+    np.testing.assert_allclose(w1, [0, 0, 20], atol=0.03)          # located in the world, again
+    np.testing.assert_allclose(w0, w1, atol=0.03)
+
+
+def test_platform_pitch_moves_the_target_in_interferometric_elevation():
+    """Pitching bow-up by 0.3° puts the same target at elevation +0.3° (y_s = 20 sin 0.3°), inside
+    the 0.86° transmit beam, measured by interferometry."""
+    sc = scene("pings: {count: 2}\nsonar: {motion: {kind: series, series: {time_s: [0, 1], "
+               "pitch_deg: [0, 0.3]}}}\ntargets:\n  points:\n    - {frame: world, position_m: [0, 0, 20]}\n")
+    (_, el0, _), (_, el1, w1) = _detected_angles(sc)
+    assert math.degrees(el0) == pytest.approx(0.0, abs=0.02)
+    assert math.degrees(el1) == pytest.approx(0.3, abs=0.02)
+    np.testing.assert_allclose(w1, [0, 0, 20], atol=0.03)
+
+
+def test_a_swell_and_a_csv_series_give_the_poses_they_describe(tmp_path):
+    from acoustics.scene import load_scene
+    from acoustics.simulation.setup import make_setup
+    csv = tmp_path / "motion.csv"
+    csv.write_text("time_s,roll_deg,pitch_deg,heave_m\n0,0,0,0\n2,4,-2,0.5\n")
+    p = tmp_path / "s.yaml"
+    p.write_text(QUIET + "sonar: {motion: {kind: file, file: motion.csv}}\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SceneWarning)
+        setup = make_setup(load_scene(p))
+    roll, pitch, yaw, heave = setup.platform.attitude(1.0)   # halfway: linear interpolation
+    assert math.degrees(roll) == pytest.approx(2.0) and math.degrees(pitch) == pytest.approx(-1.0)
+    assert heave == pytest.approx(0.25)
+    pose = setup.pose_at(1)
+    assert pose.position_m[2] == pytest.approx(-0.25)        # heave lifts: z is depth
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time_s,roll_deg\n0,zero\n")
+    p.write_text(QUIET + "sonar: {motion: {kind: file, file: bad.csv}}\n")
+    from acoustics.sonar.platform import MotionFileError
+    with pytest.raises(MotionFileError, match=r"bad.csv:2: column roll_deg"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SceneWarning)
+            make_setup(load_scene(p))
