@@ -75,9 +75,10 @@ def test_resolved_scene_fills_every_default(write_scene):
                 "transmitter_stagger_m: 0.0015", "kernel_length: 8", "bandwidth_hz: 22727.5"):
         assert key in text, key
     # the only nulls left are choices made at run time: explicit arrays (preset used), the
-    # reverberation range (end of the record) and ray threads (every core)
+    # reverberation range (end of the record), ray threads (every core) and the platform's
+    # motion (none: a still platform)
     allowed = ("transmitter: null", "receiver: null", "density_per_m3: null", "max_range_m: null",
-               "ray_threads: null")
+               "ray_threads: null", "motion: null")
     body = text.split("processing:")[0]
     for a in allowed:
         body = body.replace(a, "")

@@ -19,17 +19,7 @@ from acoustics.sonar.pulse import Pulse
 from acoustics.synthesis.arrivals import EchoModel
 from processing.counting import CountingVolume, counting_volume
 
-__all__ = ["Setup", "make_setup", "counting_volume_of", "pose_at_time_zero"]
-
-
-def pose_at_time_zero(scene):
-    """The sonar's world pose at ping 0 (t = 0): where moving targets given relative to the
-    sonar start from."""
-    sonar = build_sonar(scene)
-    if scene.sonar.motion is None:
-        return sonar.pose
-    from acoustics.sonar.platform import PlatformMotion
-    return PlatformMotion.from_spec(scene.sonar.motion, scene.resolve_path).pose(sonar.pose, 0.0)
+__all__ = ["Setup", "make_setup", "counting_volume_of"]
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,7 +17,7 @@ import numpy as np
 
 from acoustics.frames import Pose
 
-__all__ = ["attitude_rotation", "PlatformMotion", "read_motion_csv", "MotionFileError"]
+__all__ = ["attitude_rotation", "PlatformMotion", "read_motion_csv", "MotionFileError", "pose_at_time_zero"]
 
 _COLUMNS = ("time_s", "roll_deg", "pitch_deg", "yaw_deg", "heave_m")
 
@@ -147,3 +147,13 @@ class PlatformMotion:
         rot = attitude_rotation(roll, pitch, yaw)
         position = rot @ np.asarray(mount.position_m, float) + np.array([0.0, 0.0, -heave])
         return Pose(position, rot @ np.asarray(mount.rotation, float))
+
+
+def pose_at_time_zero(scene) -> Pose:
+    """The sonar's world pose at ping 0 (t = 0): where moving targets given relative to the
+    sonar start from."""
+    from acoustics.sonar.build import build_sonar
+    mount = build_sonar(scene).pose
+    if scene.sonar.motion is None:
+        return mount
+    return PlatformMotion.from_spec(scene.sonar.motion, scene.resolve_path).pose(mount, 0.0)

@@ -152,7 +152,7 @@ def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None) -> Ta
         if moving:
             # a moving point starts where it is at ping 0 (in the ping-0 pose's world) and goes
             # straight: x(t) = x(0) + v t
-            from acoustics.simulation.setup import pose_at_time_zero
+            from acoustics.sonar.platform import pose_at_time_zero
             p0 = pose_at_time_zero(scene)
             for i in moving:
                 v[i] = spec.points[i].velocity_m_s
@@ -181,7 +181,7 @@ def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None) -> Ta
         if pop.swim is not None:
             if pop.kind != "school" and getattr(pop, "frame", "world") != "world":
                 # start from the ping-0 world positions (a sonar-frame region at the mount pose)
-                from acoustics.simulation.setup import pose_at_time_zero
+                from acoustics.sonar.platform import pose_at_time_zero
                 pw = pose_at_time_zero(scene).to_world(ps)
             pw, v = swim_trajectory(pop.swim, pw, seed=seed, group=j,
                                     interval_s=scene.pings.interval_s, ping=ping)
