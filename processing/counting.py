@@ -9,8 +9,19 @@ and [r1, r2] the image's range limits. Its volume is exact:
     V = (r2³ − r1³)/3 · 2θ_h · 2 sin φ_h          (13.8 m³ for ABACUS at 13–26 m)
 
 Counts per ping: *before interferometry* every detection whose range and azimuth fall in the
-volume's span (elevation unknown); *after* only those whose 3-D position lies inside. Density =
-count / V.
+volume's span (elevation unknown); *after* only those whose 3-D position lies inside.
+
+Two densities, because a counting volume is a fixed sector and a school is not:
+
+``density_per_m3``           count / V: the density *of the counting volume*. Where the fish
+                             occupy only part of its range (a school at 15–25 m in a 13–26 m
+                             volume) it reads low by the empty fraction (20 % there).
+``occupied_density_per_m3``  count / V_occ, V_occ the part of the volume between the nearest and
+                             farthest ranges the run's located targets occupy: the density *where
+                             the targets are*. The range extent of n points uniform in a layer
+                             underestimates the layer by 2/(n + 1) of its width (order statistics),
+                             so the observed extent is widened by that factor; with the hundreds of
+                             detections of a run the estimate is within a few per cent.
 """
 from __future__ import annotations
 
@@ -18,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["CountingVolume", "counting_volume"]
+__all__ = ["CountingVolume", "counting_volume", "occupied_range"]
 
 
 @dataclass(frozen=True)
@@ -38,6 +49,15 @@ class CountingVolume:
     @property
     def volume_m3(self) -> float:
         r1, r2 = self.range_m
+        return float((r2**3 - r1**3) / 3 * 2 * self.azimuth_halfwidth_rad
+                     * 2 * np.sin(self.elevation_halfwidth_rad))
+
+    def sector_volume_m3(self, range_m) -> float:
+        """Volume (m³) of the sector between two ranges (clipped to the volume's own)."""
+        r1 = max(float(range_m[0]), self.range_m[0])
+        r2 = min(float(range_m[1]), self.range_m[1])
+        if r2 <= r1:
+            return 0.0
         return float((r2**3 - r1**3) / 3 * 2 * self.azimuth_halfwidth_rad
                      * 2 * np.sin(self.elevation_halfwidth_rad))
 
@@ -70,3 +90,25 @@ def counting_volume(*, tx_beamwidth_az_rad: float, tx_beamwidth_el_rad: float, i
     if not (np.isfinite(az) and az > 0 and np.isfinite(el) and el > 0):
         raise ValueError("the counting volume needs positive azimuth and elevation half-widths")
     return CountingVolume(rng, float(az), float(el))
+
+
+def occupied_range(range_m, volume: CountingVolume):
+    """The range layer the located targets of a run occupy, or None (fewer than 2 targets).
+
+    Parameters
+    ----------
+    range_m : array_like, shape (n,)
+        Ranges (m) of the detections located inside the counting volume, every ping together.
+    volume : CountingVolume
+
+    Returns
+    -------
+    (float, float) or None
+        [r_min − e, r_max + e] clipped to the volume, e = (r_max − r_min) / (n − 1): the
+        unbiased extent of a uniform layer from its n samples' range (n + 1)/(n − 1).
+    """
+    r = np.sort(np.asarray(range_m, float))
+    if r.size < 2:
+        return None
+    pad = (r[-1] - r[0]) / (r.size - 1)
+    return (max(volume.range_m[0], float(r[0] - pad)), min(volume.range_m[1], float(r[-1] + pad)))

@@ -26,8 +26,8 @@ __all__ = ["PROCESSING_GROUP", "resolve_settings", "image", "images_of", "figure
 
 PROCESSING_GROUP = "Processing"
 #: what only interferometry (the elevation) gives: NaN in normal and combined mode
-AFTER_KEYS = ("count_after", "density_per_m3", "error_after", "hits_after", "misses_after",
-              "false_alarms_after", "shared_cell_misses")
+AFTER_KEYS = ("count_after", "density_per_m3", "occupied_density_per_m3", "error_after",
+              "hits_after", "misses_after", "false_alarms_after", "shared_cell_misses")
 DETECTIONS_GROUP = "Processing/Detections"
 COUNTS_GROUP = "Processing/Counts"
 
@@ -460,6 +460,12 @@ def count(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.DataT
                     dr=float(da["range_resolution_m"]),
                     dtheta=float(da["azimuth_resolution_rad"]), gate=st.count.gate_cells,
                     unresolved=st.count.unresolved_cells)
+    # the density where the targets are: the range layer the run's located targets occupy
+    from .counting import occupied_range
+    layer = occupied_range(table["range_m"][table["in_volume"]], volume)
+    occupied_m3 = volume.sector_volume_m3(layer) if layer is not None else 0.0
+    res["occupied_density_per_m3"] = (res["count_after"] / occupied_m3 if occupied_m3 > 0
+                                      else np.full(len(ping_index), np.nan))
     interferometric = bool(tree[PROCESSING_GROUP].ds.attrs.get("interferometric", 1))
     if not interferometric:
         # no elevation, so nothing is located in 3-D: "after interferometry" does not exist
@@ -471,8 +477,15 @@ def count(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.DataT
                     coords={"ping_time": eg["ping_time"].values,
                             "ping_index": ("ping_time", np.asarray(ping_index))},
                     attrs={"counting_volume_m3": volume.volume_m3, "gate_cells": st.count.gate_cells,
-                           "has_truth": int("true_in_volume" in res)})
-    ds["density_per_m3"].attrs["units"] = "m^-3"
+                           "has_truth": int("true_in_volume" in res),
+                           "occupied_range_m": list(layer) if layer is not None else [],
+                           "occupied_volume_m3": occupied_m3})
+    ds["density_per_m3"].attrs.update(units="m^-3", long_name="counted / counting volume: the "
+                                      "density of the counting volume")
+    ds["occupied_density_per_m3"].attrs.update(
+        units="m^-3", long_name="counted / the part of the counting volume the run's located "
+        "targets occupy in range: the density where the targets are (processing/counting.py)",
+        nan_means="fewer than 2 located targets: no occupied layer")
     for k in AFTER_KEYS:
         if k in ds:
             ds[k].attrs["nan_means"] = "no interferometry (normal or combined mode): no elevation"
@@ -543,8 +556,10 @@ def count_summary(tree: xr.DataTree) -> dict:
             return {"mean": None, "std": None} if n else {"mean": 0.0, "std": 0.0}
         return {"mean": float(v.mean()), "std": float(v.std())}
 
-    summary = {"pings": n, "counting_volume_m3": c["volume_m3"]}
-    for key in ("count_before", "count_after", "density_per_m3", "true_in_volume",
+    summary = {"pings": n, "counting_volume_m3": c["volume_m3"],
+               "occupied_range_m": list(ds.attrs.get("occupied_range_m", [])),
+               "occupied_volume_m3": float(ds.attrs.get("occupied_volume_m3", 0.0))}
+    for key in ("count_before", "count_after", "density_per_m3", "occupied_density_per_m3", "true_in_volume",
                 "true_density_per_m3", "error_before", "error_after"):
         if key in c:
             summary[key] = stats(key)
@@ -603,8 +618,14 @@ def format_counts(result: dict) -> str:
                      f"the volume (no interferometry, so no elevation)")
     else:
         lines.append(f"counted per ping: {s['count_after']['mean']:.2f} ± {s['count_after']['std']:.2f} "
-                     f"inside the volume (density {s['density_per_m3']['mean']:.4f} ± "
-                     f"{s['density_per_m3']['std']:.4f} m⁻³); {s['count_before']['mean']:.2f} in the span")
+                     f"inside the volume; {s['count_before']['mean']:.2f} in the span")
+        lines.append(f"density of the counting volume: {s['density_per_m3']['mean']:.4f} ± "
+                     f"{s['density_per_m3']['std']:.4f} m⁻³")
+        occ = s.get("occupied_density_per_m3", {"mean": None})
+        if occ["mean"] is not None:
+            r = s["occupied_range_m"]
+            lines.append(f"density where the targets are ({r[0]:.2f}–{r[1]:.2f} m, "
+                         f"{s['occupied_volume_m3']:.2f} m³): {occ['mean']:.4f} ± {occ['std']:.4f} m⁻³")
     if truth:
         lines.append(f"truth per ping: {s['true_in_volume']['mean']:.2f} in the volume (density "
                      f"{s['true_density_per_m3']['mean']:.4f} m⁻³)")
