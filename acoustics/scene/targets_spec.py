@@ -12,7 +12,7 @@ from acoustics.scene.motion_spec import SwimSpec
 from processing.config import (AngleDeg, AngleRangeDeg, ConfigModel, Count, NonNegativeReal,
                                PositiveReal, Real, Vec3)
 
-__all__ = ["UnitTS", "FixedTS", "RayleighTS", "Backscatter", "PointTarget", "CuboidPopulation",
+__all__ = ["UnitTS", "FixedTS", "RayleighTS", "SwimbladderTS", "Backscatter", "PointTarget", "CuboidPopulation",
            "SectorPopulation", "SchoolPopulation", "Population", "TargetsSpec", "Interval"]
 
 Interval = tuple[Real, Real]
@@ -48,8 +48,36 @@ class RayleighTS(ConfigModel):
         return self
 
 
+class SwimbladderTS(ConfigModel):
+    """A fish's echo from its gas-filled swimbladder: a pressure-release prolate spheroid
+    scattered by physical optics (acoustics/targets/fish.py), at the incidence angle set by the
+    fish's heading, its tilt and where it is in the beam. Typical bladders: a quarter to a third
+    of the fish's length, 5–10 times longer than wide."""
+
+    model: Literal["swimbladder"] = "swimbladder"
+    length_m: PositiveReal = Field(0.05, le=1.0)
+    """Bladder length 2a (m)."""
+    width_m: PositiveReal = Field(0.008, le=0.5)
+    """Bladder diameter 2b (m)."""
+    tilt_mean: AngleDeg(-90, 90) = Field(0.0, alias="tilt_mean_deg")
+    """Mean tilt of the fish (nose up positive), drawn anew each ping."""
+    tilt_sd: AngleDeg(0, 90) = Field(10.0, alias="tilt_sd_deg")
+    """Standard deviation of the tilt (deg); in situ values of 5–20° are common."""
+    subdivisions: int = Field(5, ge=3, le=8)
+    """Mesh resolution: icosphere subdivisions of the spheroid (20 x 4^n facets), a knob."""
+    tilt_step: AngleDeg(0.01, 10) = Field(0.25, alias="tilt_step_deg")
+    """Step of the tabulated f(α) (deg), a knob (docs/accuracy.md)."""
+
+    @model_validator(mode="after")
+    def _prolate(self):
+        if not self.width_m < self.length_m:
+            raise ValueError("width_m must be below length_m (a prolate spheroid)")
+        return self
+
+
 Backscatter = Annotated[Union[Annotated[UnitTS, Tag("unit")], Annotated[FixedTS, Tag("fixed")],
-                              Annotated[RayleighTS, Tag("rayleigh")]],
+                              Annotated[RayleighTS, Tag("rayleigh")],
+                              Annotated[SwimbladderTS, Tag("swimbladder")]],
                         Discriminator("model")]
 
 

@@ -13,7 +13,7 @@ A population given by density draws a Poisson number of targets with mean densit
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -86,6 +86,8 @@ def draw_backscatter(model, n: int, rng: np.random.Generator) -> np.ndarray:
         return np.ones(n)
     if model.model == "fixed":
         return np.full(n, 10.0 ** (model.ts_db / 20.0))
+    if model.model == "swimbladder":
+        return np.ones(n)   # set from the bladder once positions are known (_with_fish)
     s, lo, hi = model.scale_m, model.lo_m, model.hi_m
     # Rayleigh CDF F(x) = 1 - exp(-x²/2s²); sample F uniformly between F(lo) and F(hi)
     f_lo = -np.expm1(-lo * lo / (2 * s * s))
@@ -196,6 +198,37 @@ def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None) -> Ta
         ids.append(j * ID_BLOCK + np.arange(n, dtype=np.int64))
     if not parts_s:
         return TargetSet.empty()
-    return TargetSet(np.concatenate(parts_s), np.concatenate(parts_w), np.concatenate(rhos),
-                     np.concatenate(phases), np.concatenate(groups).astype(int),
-                     np.concatenate(ids), np.concatenate(vels))
+    out = TargetSet(np.concatenate(parts_s), np.concatenate(parts_w), np.concatenate(rhos),
+                    np.concatenate(phases), np.concatenate(groups).astype(int),
+                    np.concatenate(ids), np.concatenate(vels))
+    return _with_fish(scene, out, ping, pose, seed)
+
+
+def _with_fish(scene, targets: TargetSet, ping: int, pose: Pose, seed: int) -> TargetSet:
+    """Targets whose backscatter model is a swimbladder get ρ and phase from their bladder at
+    this ping's incidence angle (acoustics/targets/fish.py)."""
+    spec = scene.targets
+    fish_groups = [(g, pop.backscatter) for g, pop in enumerate(spec.populations)
+                   if pop.backscatter.model == "swimbladder"]
+    fish_points = [i for i, tp in enumerate(spec.points) if tp.backscatter.model == "swimbladder"]
+    if not fish_groups and not fish_points:
+        return targets
+    from acoustics.targets.fish import fish_amplitude
+    k = 2 * np.pi * scene.signal.center_frequency_hz / scene.medium.sound_speed_m_s
+    rho, phase = targets.rho_m.copy(), targets.phase_rad.copy()
+    selections = [(np.flatnonzero(targets.group == -1)[fish_points], spec.points[i].backscatter, 0)
+                  for i in fish_points]
+    selections += [(np.flatnonzero(targets.group == g), model, g + 1) for g, model in fish_groups]
+    for idx, model, stream_group in selections:
+        if idx.size == 0:
+            continue
+        v = targets.velocity_world_m_s[idx]
+        swimming = np.hypot(v[:, 0], v[:, 1]) > 0
+        # heading: where the fish swims, else a direction of its own (fixed for the run)
+        own = ping_rng(seed, FIXED, "tilt", stream_group).uniform(-np.pi, np.pi, idx.size)
+        heading = np.where(swimming, np.arctan2(v[:, 1], v[:, 0]), own)
+        tilt = model.tilt_mean + model.tilt_sd * ping_rng(seed, ping, "tilt", stream_group).standard_normal(idx.size)
+        f, _ = fish_amplitude(model, targets.position_world_m[idx], pose.position_m, heading, tilt, k)
+        rho[idx] = np.abs(f)
+        phase[idx] = phase[idx] + np.angle(f)
+    return replace(targets, rho_m=rho, phase_rad=phase)
