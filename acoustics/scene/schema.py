@@ -108,6 +108,11 @@ class NoiseSpec(ConfigModel):
     """Receiver and ambient noise: complex white Gaussian, band-limited (thesis §2.4.2)."""
 
     enabled: bool = False
+    model: Literal["counts", "sea"] = "counts"
+    """counts: σ as given; sea: the sea's thermal noise and the receiver's own from
+    ``sonar.levels`` (acoustics/sonar/levels.py), σ derived (a value given is replaced)."""
+    system_noise_nv_per_sqrt_hz: NonNegativeReal = Field(1.0, le=1e6)
+    """Receiver input noise density (nV/√Hz), for model: sea."""
     sigma_counts: NonNegativeReal = Field(preset.NOISE_SIGMA_COUNTS, le=1e12)
     """Standard deviation (ADC counts) of each quadrature component (I and Q) of a
     channel, after band-limiting; the thesis' 126.68 by default."""
@@ -226,6 +231,30 @@ class Scene(ConfigModel):
             if _is_num(band):
                 noise["bandwidth_hz"] = float(band)
         return {**data, "medium": med, "noise": noise}
+
+    @model_validator(mode="after")
+    def _physical_levels(self):
+        """With ``sonar.levels`` the ADC scale, and with ``noise.model: sea`` the noise, follow
+        from the physics (acoustics/sonar/levels.py)."""
+        lv = self.sonar.levels
+        if lv is None:
+            if self.noise.model == "sea":
+                raise ValueError("noise.model 'sea' needs sonar.levels (source level, sensitivity, "
+                                 "gain) to put the sea's noise into counts")
+            return self
+        from acoustics.sonar import levels as lev
+        bits = self.sampling.adc.bits
+        k = lev.counts_per_unit(lv, weight_sum=lev.transmit_weight_sum(self), bits=bits)
+        adc = self.sampling.adc.model_copy(update={"scale_counts": float(f"{k:.9g}")})
+        object.__setattr__(self, "sampling", self.sampling.model_copy(update={"adc": adc}))
+        if self.noise.model == "sea":
+            sigma = lev.sea_noise_sigma_counts(
+                lv, frequency_hz=self.signal.center_frequency_hz, wavelength_m=self.wavelength_m,
+                element_m=_receive_element_m(self), band_hz=self.noise.bandwidth_hz, bits=bits,
+                system_noise_v_per_sqrt_hz=self.noise.system_noise_nv_per_sqrt_hz * 1e-9)
+            object.__setattr__(self, "noise", self.noise.model_copy(
+                update={"sigma_counts": float(f"{sigma:.9g}")}))
+        return self
 
     @model_validator(mode="after")
     def _band_fits(self):
@@ -348,6 +377,16 @@ class Scene(ConfigModel):
     @property
     def wavelength_m(self) -> float:
         return self.medium.sound_speed_m_s / self.signal.center_frequency_hz
+
+
+def _receive_element_m(scene) -> tuple:
+    """(width, height) of a receive element (m): the preset's, or subarray A's first."""
+    if scene.sonar.preset == "abacus":
+        return preset.RX_ELEMENT_M
+    a = scene.sonar.receiver.A
+    if a.line is not None:
+        return (a.line.width_m, a.line.height_m)
+    return (a.elements[0].width_m, a.elements[0].height_m)
 
 
 def _split_key_path(path: str) -> list:

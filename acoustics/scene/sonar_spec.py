@@ -13,7 +13,7 @@ from acoustics.sonar.arrays import ElementArray
 from processing.config import AngleDeg, ConfigModel, Count, PositiveCount, PositiveReal, Real, Vec3
 
 __all__ = ["PoseSpec", "ElementSpec", "LineSpec", "ArraySpec", "ReceiverSpec", "PresetGeometry",
-           "SonarSpec"]
+           "LevelsSpec", "SonarSpec"]
 
 
 class PoseSpec(ConfigModel):
@@ -152,6 +152,20 @@ def _preset_defaults(variant: str) -> dict:
             "baseline_m": preset.BASELINE_M}
 
 
+class LevelsSpec(ConfigModel):
+    """Physical levels (acoustics/sonar/levels.py): with them ``sampling.adc.scale_counts`` is
+    derived (a value given there is replaced) and ``noise.model: sea`` can give the noise."""
+
+    source_level_db: float = Field(210.0, ge=150.0, le=250.0)
+    """SL: on-axis source level of the whole transmitter (dB re 1 µPa at 1 m)."""
+    receive_sensitivity_db: float = Field(-180.0, ge=-240.0, le=-120.0)
+    """M: receiving sensitivity of one element (dB re 1 V/µPa)."""
+    receiver_gain_db: float = Field(40.0, ge=-20.0, le=120.0)
+    """G: gain from the element to the ADC (dB)."""
+    adc_full_scale_v: float = Field(1.0, gt=0.0, le=100.0)
+    """Voltage of the ADC's full scale, 2^(bits−1) counts (V)."""
+
+
 class SonarSpec(ConfigModel):
     """The sonar: the ABACUS preset (``preset: abacus``) or explicit arrays
     (``preset: null`` with ``transmitter`` and ``receiver``)."""
@@ -167,6 +181,8 @@ class SonarSpec(ConfigModel):
     """interferometric: middle 8 of A and B, two images; normal: 16 of A; combined:
     8 + 8 as one image."""
     pose: PoseSpec = PoseSpec()
+    levels: LevelsSpec | None = None
+    """Physical source level, sensitivity and gain; none: the thesis' units (k counts per unit)."""
     motion: PlatformMotionSpec | None = None
     """The platform's attitude and heave per ping (roll, pitch, yaw, heave); none: it is still."""
 
