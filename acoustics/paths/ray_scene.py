@@ -18,6 +18,15 @@ targets (acoustics.synthesis). Each runs only when the scene calls for it:
                    (Gordon's exact triangle integral), computed once for static geometry.
 
 A scene without meshes never builds a ray caster.
+
+**Frames.** Embree's scene is built once, in the sonar frame at rest (the mounting pose,
+``sonar.pose``): for a still platform that is every ping's sonar frame. When the platform moves
+the meshes stay where they are and the sonar moves among them: each method takes the ping's
+``view``, the pose of that ping's sonar frame *in the frame the scene was built in*
+(x_built = view.to_world(x_ping)); points and directions go in through it and the virtual
+scatterers come back out in the ping's sonar frame. So nothing is rebuilt per ping — only what
+depends on where the sonar is (reverberation rays, lit facets of mesh targets) is recomputed for
+each new view.
 """
 from __future__ import annotations
 
@@ -25,6 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from acoustics.frames import Pose
 from acoustics.sonar.beams import illuminated_extent
 from acoustics.paths.meshes import SceneMesh, scene_meshes
 from acoustics.medium import Medium
@@ -36,6 +46,16 @@ from acoustics.synthesis.scatterers import VirtualScatterers
 __all__ = ["RayScene", "build_ray_scene"]
 
 
+def _into(view: Pose | None, xyz):
+    """Ping sonar-frame points (..., 3) in the frame the scene was built in."""
+    return np.asarray(xyz, float) if view is None else view.to_world(xyz)
+
+
+def _out_of(view: Pose | None, xyz):
+    """Points (..., 3) of the built frame in the ping's sonar frame."""
+    return xyz if view is None else view.to_sonar(xyz)
+
+
 def _mirror(x, plane):
     n, d = plane
     return x - 2.0 * ((x @ n) - d)[..., None] * n
@@ -43,7 +63,9 @@ def _mirror(x, plane):
 
 @dataclass
 class RayScene:
-    """Meshes, their caster, and what is fixed for a run (planes, facets)."""
+    """Meshes, their caster, and what is fixed for a run (planes, facets), in the frame the
+    scene was built in; ``tx_center`` and ``rx_center`` are the sonar's phase centres there at
+    rest (each method's ``view`` moves them)."""
 
     meshes: list
     caster: RayCaster
@@ -54,34 +76,63 @@ class RayScene:
     frequency_hz: float
     _reverb_rays: tuple | None = None
     _mesh_target_scatterers: VirtualScatterers | None = None
+    _mesh_target_view: bytes | None = None
     hit_sample: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     # ---------------------------------------------------------------- occlusion
-    def shadowed(self, positions_m):
-        """Point targets (n, 3) whose transmit or receive path a mesh blocks, bool (n,)."""
-        p = np.asarray(positions_m, float).reshape(-1, 3)
+    def centers(self, view: Pose | None = None):
+        """The transmitter's and the receiver's phase centres (m), each shape (3,), in the built
+        frame for a sonar at ``view``."""
+        return _into(view, self.tx_center), _into(view, self.rx_center)
+
+    def shadowed(self, positions_m, view: Pose | None = None):
+        """Point targets whose transmit or receive path a mesh blocks.
+
+        Parameters
+        ----------
+        positions_m : array_like, shape (n, 3)
+            Sonar-frame positions (m) of this ping.
+        view : Pose, optional
+            This ping's sonar frame in the frame the scene was built in (None: the same).
+
+        Returns
+        -------
+        ndarray of bool, shape (n,)
+        """
+        p = _into(view, np.asarray(positions_m, float).reshape(-1, 3))
         if p.shape[0] == 0:
             return np.zeros(0, bool)
-        tx = self.caster.occluded(np.broadcast_to(self.tx_center, p.shape), p, purpose="occlusion")
-        rx = self.caster.occluded(np.broadcast_to(self.rx_center, p.shape), p, purpose="occlusion")
+        tx_c, rx_c = self.centers(view)
+        tx = self.caster.occluded(np.broadcast_to(tx_c, p.shape), p, purpose="occlusion")
+        rx = self.caster.occluded(np.broadcast_to(rx_c, p.shape), p, purpose="occlusion")
         return tx | rx
 
     # ------------------------------------------------------------ reverberation
-    def reverberation(self, scene, setup, ping: int, seed: int) -> VirtualScatterers:
+    def reverberation(self, scene, setup, ping: int, seed: int,
+                      view: Pose | None = None) -> VirtualScatterers:
+        """Facet scatterers of the boundaries the transmit beam lights, in the ping's sonar frame.
+
+        For a still sonar (``view`` None) the rays are cast once and their phases frozen unless
+        ``refresh_phase``; a moving sonar lights other patches every ping, so its rays are cast
+        from each ping's view and the phases drawn anew.
+        """
         spec = scene.effects.reverberation
-        if self._reverb_rays is None:
-            self._reverb_rays = self._cast_reverberation_rays(scene, setup, seed)
-        pts, amp, n = self._reverb_rays
+        if view is None:
+            if self._reverb_rays is None:
+                self._reverb_rays = self._cast_reverberation_rays(scene, setup, seed)
+            pts, amp, n = self._reverb_rays
+        else:
+            pts, amp, n = self._cast_reverberation_rays(scene, setup, seed, view)
         if n == 0:
             return VirtualScatterers.empty()
-        if spec.refresh_phase:
+        if spec.refresh_phase or view is not None:
             phase = ping_rng(seed, ping, "reverberation", 3).uniform(-np.pi, np.pi, n)
         else:
             phase = ping_rng(seed, FIXED, "reverberation", 3).uniform(-np.pi, np.pi, n)
         return VirtualScatterers(pts, pts.copy(), amp * np.exp(1j * phase),
                                  np.full(n, "reverberation"))
 
-    def _cast_reverberation_rays(self, scene, setup, seed):
+    def _cast_reverberation_rays(self, scene, setup, seed, view: Pose | None = None):
         spec = scene.effects.reverberation
         tx = setup.sonar.transmitter
         lvl = spec.beam_level_db
@@ -104,7 +155,10 @@ class RayScene:
         s = scene.sampling
         c = setup.medium.sound_speed_m_s
         r_max = spec.max_range_m or c * (s.time_offset_s + s.samples / s.rate_hz) / 2
-        hits = self.caster.first_hit(np.broadcast_to(self.tx_center, u.shape), u,
+        tx_c = _into(view, self.tx_center)
+        if view is not None:
+            u = view.direction_to_world(u)
+        hits = self.caster.first_hit(np.broadcast_to(tx_c, u.shape), u,
                                      max_distance_m=r_max, purpose="reverberation")
         keep = hits.hit.copy()
         mu = np.zeros(len(self.meshes))
@@ -122,7 +176,7 @@ class RayScene:
         grazing = np.pi / 2 - np.arccos(cos_inc)
         area = r**2 * solid[keep] / cos_inc
         sb = lambert_sb(grazing, 0.0) * 10.0 ** (mu[hits.mesh[keep]] / 10.0)
-        pts = hits.point[keep]
+        pts = _out_of(view, hits.point[keep])
         take = np.linspace(0, pts.shape[0] - 1, min(2000, pts.shape[0])).astype(int)
         self.hit_sample = pts[take]
         return pts, np.sqrt(sb * area), int(keep.sum())
@@ -174,9 +228,26 @@ class RayScene:
             valid &= ~self.caster.occluded(cur, end, purpose="multipath", start_on_surface=True)
         return image, valid, coef
 
-    def multipath(self, positions_m, strength, order: int) -> VirtualScatterers:
-        """Specular paths of point targets with up to ``order`` bounces per leg."""
-        p = np.asarray(positions_m, float).reshape(-1, 3)
+    def multipath(self, positions_m, strength, order: int,
+                  view: Pose | None = None) -> VirtualScatterers:
+        """Specular paths of point targets with up to ``order`` bounces per leg.
+
+        Parameters
+        ----------
+        positions_m : array_like, shape (n, 3)
+            Sonar-frame positions (m) of this ping.
+        strength : array_like, shape (n,)
+            Complex backscatter amplitudes (m).
+        order : int
+        view : Pose, optional
+            This ping's sonar frame in the frame the scene was built in (None: the same).
+
+        Returns
+        -------
+        VirtualScatterers
+            Image points in the ping's sonar frame.
+        """
+        p = _into(view, np.asarray(positions_m, float).reshape(-1, 3))
         q = np.asarray(strength, complex).reshape(-1)
         planes = sorted(self.planes)
         if order < 1 or not planes or p.shape[0] == 0:
@@ -186,8 +257,9 @@ class RayScene:
         for _ in range(order):
             frontier = [s + (b,) for s in frontier for b in planes if not s or s[-1] != b]
             seqs += frontier
-        legs_tx = {s: self._unfold(self.tx_center, p, s) for s in seqs}
-        legs_rx = {s: self._unfold(self.rx_center, p, s) for s in seqs}
+        tx_c, rx_c = self.centers(view)
+        legs_tx = {s: self._unfold(tx_c, p, s) for s in seqs}
+        legs_rx = {s: self._unfold(rx_c, p, s) for s in seqs}
         parts = []
         for st in seqs:
             for sr in seqs:
@@ -197,15 +269,19 @@ class RayScene:
                 irx, vrx, crx = legs_rx[sr]
                 ok = vtx & vrx
                 if ok.any():
-                    parts.append(VirtualScatterers(itx[ok], irx[ok], q[ok] * ctx[ok] * crx[ok],
+                    parts.append(VirtualScatterers(_out_of(view, itx[ok]), _out_of(view, irx[ok]),
+                                                   q[ok] * ctx[ok] * crx[ok],
                                                    np.full(int(ok.sum()), "multipath")))
         return VirtualScatterers.concat(parts)
 
     # -------------------------------------------------------------- mesh targets
-    def mesh_targets(self) -> VirtualScatterers:
-        """Physical-optics facet scatterers of every mesh target (computed once)."""
-        if self._mesh_target_scatterers is not None:
+    def mesh_targets(self, view: Pose | None = None) -> VirtualScatterers:
+        """Physical-optics facet scatterers of every mesh target, in the ping's sonar frame
+        (computed once per view: once for a still sonar)."""
+        key = b"" if view is None else view.position_m.tobytes() + view.rotation.tobytes()
+        if self._mesh_target_scatterers is not None and self._mesh_target_view == key:
             return self._mesh_target_scatterers
+        tx_c = _into(view, self.tx_center)
         k = 2 * np.pi * self.frequency_hz / self.medium.sound_speed_m_s
         parts = []
         for i, sm in enumerate(self.meshes):
@@ -215,7 +291,7 @@ class RayScene:
             c = tri.mean(axis=1)
             n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
             n /= np.linalg.norm(n, axis=1)[:, None]
-            v = c - self.tx_center
+            v = c - tx_c
             dist = np.linalg.norm(v, axis=1)
             kh = v / dist[:, None]
             cosine = -np.einsum("ij,ij->i", n, kh)
@@ -223,7 +299,7 @@ class RayScene:
             if not lit.any():
                 continue
             # visible: the first thing a ray from the transmitter meets is this facet
-            hits = self.caster.first_hit(np.broadcast_to(self.tx_center, (int(lit.sum()), 3)), kh[lit],
+            hits = self.caster.first_hit(np.broadcast_to(tx_c, (int(lit.sum()), 3)), kh[lit],
                                          purpose="mesh_targets")
             faces = np.flatnonzero(self.caster.face_mesh == i)
             first_face = faces[0] if faces.size else 0
@@ -237,14 +313,19 @@ class RayScene:
             f = 1j * k / (2 * np.pi) * cosine[vis] * integ
             if sm.role == "pressure_release":
                 f = -f
-            parts.append(VirtualScatterers(c[vis], c[vis].copy(), f, np.full(int(vis.sum()), "mesh_target")))
+            at = _out_of(view, c[vis])
+            parts.append(VirtualScatterers(at, at.copy(), f, np.full(int(vis.sum()), "mesh_target")))
         self._mesh_target_scatterers = VirtualScatterers.concat(parts)
+        self._mesh_target_view = key
         return self._mesh_target_scatterers
 
 
 def build_ray_scene(scene, setup, pose=None) -> RayScene | None:
-    """The ray-traced scene of a run (in the sonar frame of ``pose``, default the mounting
-    pose), or None when the scene has no meshes (no caster built)."""
+    """The ray-traced scene of a run, or None when the scene has no meshes (no caster built).
+
+    Built in the sonar frame of ``pose`` (default: the mounting pose, the sonar at rest):
+    world-frame meshes are placed there, sonar-frame meshes are taken as they are.
+    """
     if not scene.boundaries and not scene.targets.meshes:
         return None
     meshes: list[SceneMesh] = scene_meshes(scene, pose if pose is not None else setup.sonar.pose)

@@ -176,6 +176,12 @@ class EffectsSpec(ConfigModel):
     """Specular bounces per leg on planar boundaries (0: none; 1: Tx→boundary→target→Rx,
     Tx→target→boundary→Rx and both)."""
     reverberation: ReverberationSpec = ReverberationSpec()
+    doppler: bool = False
+    """Echoes of moving targets (and of any target seen from a moving platform) carry their
+    Doppler shift 2 v_r f0 / c: with the LFM pulse's range–Doppler coupling a closing speed of
+    0.5 m/s biases the range by 7 cm, 2 m/s by 29 cm (docs/accuracy.md, "within-ping motion")."""
+    doppler_bin_hz: PositiveReal = Field(5.0, le=1000.0)
+    """Doppler grid of the fast synthesis (Hz), an accuracy knob (docs/accuracy.md)."""
     ray_threads: PositiveCount | None = None
     """Threads for ray batches (default: every core)."""
 

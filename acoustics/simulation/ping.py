@@ -13,7 +13,27 @@ from acoustics.synthesis.scatterers import VirtualScatterers
 from acoustics.synthesis.synthesize import synthesize
 from acoustics.targets.draw import TargetSet, draw_targets
 
-__all__ = ["simulate_ping"]
+__all__ = ["simulate_ping", "doppler_shift_hz"]
+
+
+def doppler_shift_hz(scene, setup: Setup, ping: int, pose, targets: TargetSet) -> np.ndarray:
+    """Two-way Doppler shift f_d = 2 v_r f0 / c (Hz) of each target, shape (n,): v_r is the
+    speed at which target and sonar close (the target's velocity, less the sonar's, along the
+    line between them; the sonar's from its poses 0.05 s either side of the ping)."""
+    v_target = (targets.velocity_world_m_s if targets.velocity_world_m_s is not None
+                else np.zeros((len(targets), 3)))
+    v_sonar = np.zeros(3)
+    if setup.platform is not None:
+        dt = 0.05
+        t = ping * setup.interval_s
+        before = setup.platform.pose(setup.sonar.pose, t - dt).position_m
+        after = setup.platform.pose(setup.sonar.pose, t + dt).position_m
+        v_sonar = (after - before) / (2 * dt)
+    d = targets.position_world_m - pose.position_m
+    dist = np.linalg.norm(d, axis=1, keepdims=True)
+    d = np.divide(d, dist, out=np.zeros_like(d), where=dist > 0)
+    closing = -np.sum((v_target - v_sonar) * d, axis=1)
+    return 2.0 * closing * scene.signal.center_frequency_hz / setup.medium.sound_speed_m_s
 
 
 def _with_shadow(targets: TargetSet, shadowed):
@@ -41,24 +61,29 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
     with log.stage("targets"):
         targets = draw_targets(scene, ping, pose, seed=seed)
     strength = targets.rho_m * np.exp(1j * targets.phase_rad)
-    rs = setup.ray_scene_at(scene, pose, log)
+    rs, view = setup.ray_scene_at(scene, pose, log)
     shadowed = np.zeros(len(targets), bool)
     if rs is not None and fx.occlusion and len(targets):
         with log.stage("occlusion"):
-            shadowed = rs.shadowed(targets.position_sonar_m)
+            shadowed = rs.shadowed(targets.position_sonar_m, view)
     direct = ~shadowed
     parts = [VirtualScatterers(targets.position_sonar_m[direct], targets.position_sonar_m[direct],
                                strength[direct], np.full(int(direct.sum()), "direct"))]
     if rs is not None and fx.multipath_order > 0 and rs.planes and len(targets):
         with log.stage("multipath"):
-            parts.append(rs.multipath(targets.position_sonar_m, strength, fx.multipath_order))
+            parts.append(rs.multipath(targets.position_sonar_m, strength, fx.multipath_order, view))
     if rs is not None and scene.targets.meshes:
         with log.stage("mesh_targets"):
-            parts.append(rs.mesh_targets())
+            parts.append(rs.mesh_targets(view))
     if rs is not None and fx.reverberation.enabled and scene.boundaries:
         with log.stage("reverberation"):
-            parts.append(rs.reverberation(scene, setup, ping, seed))
+            parts.append(rs.reverberation(scene, setup, ping, seed, view))
     vs = VirtualScatterers.concat(parts)
+    doppler = None
+    if fx.doppler and len(vs) and len(targets):
+        with log.stage("doppler"):
+            doppler = np.zeros(len(vs))
+            doppler[:int(direct.sum())] = doppler_shift_hz(scene, setup, ping, pose, targets)[direct]
     if len(vs):
         with log.stage("echoes"):
             bistatic = not np.array_equal(vs.p_tx, vs.p_rx)
@@ -66,7 +91,8 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
                            rate_hz=s.rate_hz, n_samples=s.samples, t0_s=s.time_offset_s,
                            method=fx.synthesis, kernel_length=fx.kernel_length,
                            oversampling=fx.oversampling,
-                           receive_positions_m=vs.p_rx if bistatic else None)
+                           receive_positions_m=vs.p_rx if bistatic else None,
+                           doppler_hz=doppler, doppler_bin_hz=fx.doppler_bin_hz)
     else:
         x = np.zeros((n_ch, s.samples), complex)
     targets = _with_shadow(targets, shadowed)

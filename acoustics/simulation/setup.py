@@ -46,19 +46,35 @@ class Setup:
         return self.platform.pose(self.sonar.pose, ping * self.interval_s)
 
     def ray_scene_at(self, scene, pose, log: StageLog | None = None):
-        """The ray-traced scene in the sonar frame of ``pose``: the run's own when the platform
-        is still, else built for this pose (Embree works in the sonar frame, so a moving sonar
-        needs its meshes placed anew; the last pose's scene is kept)."""
-        if self.ray_scene is None or self.platform is None:
-            return self.ray_scene
+        """The ray-traced scene for a ping whose sonar is at ``pose``, and the view to query it
+        with: ``(ray_scene, view)``.
+
+        The run's scene is built once, in the sonar frame at rest (the mounting pose); a moving
+        sonar queries it through ``view``, its ping's sonar frame in that frame (None for a still
+        platform, or when every mesh rides with the sonar in the sonar frame). Only a scene that
+        mixes world-frame and sonar-frame meshes under a moving platform is rebuilt for each
+        pose (its meshes move relative to each other; the last pose's scene is kept).
+        """
+        rs = self.ray_scene
+        if rs is None or self.platform is None:
+            return rs, None
+        frames = {getattr(sm.spec, "frame", "world") for sm in rs.meshes}
+        if frames == {"sonar"}:
+            return rs, None
+        if frames == {"world"}:
+            from acoustics.frames import Pose
+            mount = self.sonar.pose
+            return rs, Pose(mount.to_sonar(pose.position_m), mount.rotation.T @ pose.rotation)
         key = pose.position_m.tobytes() + pose.rotation.tobytes()
         if key not in self._moving_rays:
             from acoustics.paths.ray_scene import build_ray_scene
             self._moving_rays.clear()
             log = log if log is not None else StageLog()
             with log.stage("rays_build"):
-                self._moving_rays[key] = build_ray_scene(scene, self, pose)
-        return self._moving_rays[key]
+                moved = build_ray_scene(scene, self, pose)
+            moved.caster.rays_cast = rs.caster.rays_cast      # one count per run
+            self._moving_rays[key] = moved
+        return self._moving_rays[key], None
 
     @property
     def counting_volume(self) -> CountingVolume:

@@ -80,7 +80,8 @@ def fractional_delay_table(taps: int, transition: float, phases: int = _TABLE_PH
 
 def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz: float,
                n_samples: int, t0_s: float = 0.0, method: str = "fast", kernel_length: int = 8,
-               oversampling: int = 2, receive_positions_m=None):
+               oversampling: int = 2, receive_positions_m=None, doppler_hz=None,
+               doppler_bin_hz: float = 5.0):
     """Complex baseband samples of every receiver element for a set of point scatterers.
 
     Parameters
@@ -106,6 +107,14 @@ def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz
     receive_positions_m : array_like, shape (S, 3), optional
         Start of each receive leg when it differs from the transmit leg's end (the image point of
         a path that bounces on its way back); default the same points.
+    doppler_hz : array_like, shape (S,), optional
+        Two-way Doppler shift f_d = 2 v_r f0 / c of each scatterer (Hz; v_r its speed towards
+        the sonar): the echo is u(t − τ) e^{j2π f_d (t − τ)} e^{−j2πf0τ} (narrowband: the
+        carrier shifts, the envelope's 10⁻³ compression is neglected). None: no Doppler.
+    doppler_bin_hz : float
+        ``fast`` only: scatterers share Doppler-shifted replicas on a grid of this step, each
+        split linearly between its two neighbours; the phase error over a pulse of length T is at
+        most (π Δf T)²/2 (docs/accuracy.md, "Doppler").
 
     Returns
     -------
@@ -122,14 +131,37 @@ def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz
     if p.shape[0] == 0:
         return np.zeros((n_rx, n_samples), complex)
     prx = None if receive_positions_m is None else np.asarray(receive_positions_m, float).reshape(-1, 3)
+    fd = None
+    if doppler_hz is not None:
+        fd = np.asarray(doppler_hz, float).reshape(-1)
+        if fd.shape[0] != p.shape[0] or not np.all(np.isfinite(fd)):
+            raise ValueError("doppler_hz must be finite, one per scatterer")
+        if not np.any(fd):
+            fd = None
     if method == "exact":
-        return _exact(model, p, q, pulse, rate_hz, n_samples, t0_s, prx)
+        return _exact(model, p, q, pulse, rate_hz, n_samples, t0_s, prx, fd)
     if int(oversampling) < 1:
         raise ValueError(f"oversampling must be >= 1, got {oversampling}")
-    return _fast(model, p, q, pulse, rate_hz, n_samples, t0_s, kernel_length, int(oversampling), prx)
+    if fd is None:
+        return _fast(model, p, q, pulse, rate_hz, n_samples, t0_s, kernel_length, int(oversampling), prx)
+    if not doppler_bin_hz > 0:
+        raise ValueError(f"doppler_bin_hz must be > 0, got {doppler_bin_hz}")
+    # Doppler bins: each scatterer split linearly between the two replicas shifted by the grid
+    # frequencies around its own; the bins' spectra add up before one inverse FFT
+    pos = fd / doppler_bin_hz
+    lo = np.floor(pos).astype(np.int64)
+    frac = pos - lo
+    groups = []
+    for b in np.unique(np.concatenate([lo, lo + 1])):
+        w = np.where(lo == b, 1.0 - frac, 0.0) + np.where(lo + 1 == b, frac, 0.0)
+        k = np.flatnonzero(w > 0)
+        if k.size:
+            groups.append((float(b) * doppler_bin_hz, k, w[k]))
+    return _fast(model, p, q, pulse, rate_hz, n_samples, t0_s, kernel_length, int(oversampling),
+                 prx, groups=groups)
 
 
-def _exact(model, p, q, pulse, fs, n, t0, prx=None):
+def _exact(model, p, q, pulse, fs, n, t0, prx=None, fd=None):
     tau, amp = arrivals(model, p, q, receive_positions_m=prx)
     n_rx = tau.shape[1]
     m = pulse.n_samples(fs) + 1
@@ -137,16 +169,21 @@ def _exact(model, p, q, pulse, fs, n, t0, prx=None):
     out_i = np.zeros(n_rx * n)
     tau_f = tau.T.ravel()                     # channel-major, (N_rx * S,)
     amp_f = amp.T.ravel()
+    fd_f = np.tile(fd, n_rx) if fd is not None else None
     chan = np.repeat(np.arange(n_rx), tau.shape[0])
     first = np.ceil((tau_f - t0) * fs - 1e-9).astype(np.int64)  # first sample at t >= τ
     keep = (first < n) & (first + m > 0)
     tau_f, amp_f, chan, first = tau_f[keep], amp_f[keep], chan[keep], first[keep]
+    if fd_f is not None:
+        fd_f = fd_f[keep]
     step = max(1, 4_000_000 // m)
     offs = np.arange(m)
     for s in range(0, tau_f.size, step):
         idx = first[s:s + step, None] + offs
         t = t0 + idx / fs - tau_f[s:s + step, None]
         val = amp_f[s:s + step, None] * pulse.envelope(t)
+        if fd_f is not None:
+            val = val * np.exp(2j * np.pi * fd_f[s:s + step, None] * t)
         ok = (idx >= 0) & (idx < n) & (val != 0)
         flat = (chan[s:s + step, None] * n + idx)[ok]
         out_r += np.bincount(flat, weights=val.real[ok], minlength=n_rx * n)
@@ -154,18 +191,31 @@ def _exact(model, p, q, pulse, fs, n, t0, prx=None):
     return (out_r + 1j * out_i).reshape(n_rx, n)
 
 
-def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None):
+def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
+    """``groups``: (shift_hz, indices, weights) of Doppler-binned scatterers, each convolved with
+    the replica shifted by shift_hz; None: one group, unshifted."""
     fine = fs * up
     replica = pulse.replica(fine)
     m = replica.size
     # room for an echo that starts up to a pulse length plus half a kernel before sample 0
     q0 = m + taps
     n_out = q0 + up * n + taps
-    band = min(pulse.bandwidth_hz + 4.0 / pulse.duration_s, 0.98 * fine)
+    if groups is None:
+        groups = [(0.0, slice(None), 1.0)]
+    widest = max(abs(g[0]) for g in groups)
+    band = min(pulse.bandwidth_hz + 4.0 / pulse.duration_s + 2.0 * widest, 0.98 * fine)
     table = fractional_delay_table(int(taps), (fine - band) / fine)
-    delta = spread_arrivals(model, p, q, table=table, t0_s=t0, rate_hz=fine, q0=q0, n_out=n_out,
-                            receive_positions_m=prx)
     nfft = sfft.next_fast_len(n_out + m - 1)  # linear, not circular, convolution
-    spec = sfft.fft(delta, nfft, axis=1, workers=-1) * sfft.fft(replica, nfft)
+    spec = None
+    for shift_hz, k, w in groups:
+        rep = replica if not shift_hz else replica * np.exp(2j * np.pi * shift_hz * np.arange(m) / fine)
+        delta = spread_arrivals(model, p[k], q[k] * w, table=table, t0_s=t0, rate_hz=fine, q0=q0,
+                                n_out=n_out, receive_positions_m=None if prx is None else prx[k])
+        part = sfft.fft(delta, nfft, axis=1, workers=-1)
+        part *= sfft.fft(rep, nfft)
+        if spec is None:
+            spec = part
+        else:
+            spec += part
     full = sfft.ifft(spec, axis=1, workers=-1)
     return full[:, q0:q0 + up * n:up]
