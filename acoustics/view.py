@@ -1,6 +1,8 @@
 """3-D view of a scene (pyvista): meshes, sonar and pose, transmit beam, counting volume, targets
-(coloured inside / outside / shadowed) and a sample of reverberation ray hits. Off-screen by
-default; an interactive window when asked for and a display exists. World frame, z down."""
+(coloured inside / outside / shadowed) and a sample of reverberation ray hits; in a scene in
+motion, the sonar at the ping's pose with its path over the run, and the tracks of moving
+targets. Off-screen by default; an interactive window when asked for and a display exists.
+World frame, z down."""
 from __future__ import annotations
 
 import os
@@ -30,33 +32,59 @@ def _sector(r0, r1, half_az, half_el, n=24):
     return grid.extract_surface()
 
 
+def _draw_motion(plotter, scene, setup, targets, max_tracks=300):
+    """The sonar's path over the run and the tracks of moving targets (world frame)."""
+    import pyvista as pv
+
+    from acoustics.targets.draw import draw_targets
+    pings = range(scene.pings.count)
+    if setup.platform is not None and len(pings) > 1:
+        path = np.array([setup.pose_at(p).position_m for p in pings])
+        plotter.add_mesh(pv.lines_from_points(path), color="red", line_width=3, label="sonar path")
+    if targets.velocity_world_m_s is None or not np.any(targets.velocity_world_m_s) or len(pings) < 2:
+        return
+    ids = targets.target_id[np.any(targets.velocity_world_m_s != 0, axis=1)][:max_tracks]
+    tracks = {i: [] for i in ids.tolist()}
+    for p in pings:
+        t = draw_targets(scene, p, setup.pose_at(p))
+        for i, xyz in zip(t.target_id.tolist(), t.position_world_m):
+            if i in tracks:
+                tracks[i].append(xyz)
+    lines = [pv.lines_from_points(np.array(v)) for v in tracks.values() if len(v) > 1]
+    if lines:
+        merged = lines[0].merge(lines[1:]) if len(lines) > 1 else lines[0]
+        plotter.add_mesh(merged, color="royalblue", line_width=1.5, opacity=0.6,
+                         label=f"target tracks ({len(pings)} pings)")
+
+
 def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, interactive: bool = False,
                  window_size=(1400, 1000)):
     """Draw the scene; write a PNG when ``output`` is given. Returns the output path (or None)."""
     import pyvista as pv
 
-    from acoustics.simulation.run import counting_volume_of, make_setup
+    from acoustics.simulation.setup import counting_volume_of, make_setup
     from acoustics.targets.draw import draw_targets
 
     off = not (interactive and (os.environ.get("DISPLAY") or os.name == "nt"))
     setup = make_setup(scene)
-    pose = setup.sonar.pose
+    mount = setup.sonar.pose          # meshes are built in the sonar frame at rest
+    pose = setup.pose_at(ping)
     to_world = pose.to_world
     plotter = pv.Plotter(off_screen=off, window_size=list(window_size))
     plotter.set_background("white")
-    rs = setup.ray_scene
+    rs, view = setup.ray_scene_at(scene, pose)
     colours = {"surface": "lightblue", "floor": "tan", "obstacle": "dimgray", "rigid": "gold",
                "pressure_release": "orange"}
     if rs is not None:
         for sm in rs.meshes:
-            v = to_world(sm.mesh.vertices)
+            v = (mount if view is not None else pose).to_world(sm.mesh.vertices)
             faces = np.hstack([np.full((len(sm.mesh.faces), 1), 3), sm.mesh.faces]).ravel()
             opacity = 0.35 if sm.role == "surface" else 0.9
             plotter.add_mesh(pv.PolyData(v, faces), color=colours.get(sm.role, "gray"),
                              opacity=opacity, ambient=0.55, diffuse=0.5, specular=0.0,
                              label=sm.name)
         if scene.effects.reverberation.enabled:
-            rs.reverberation(scene, setup, ping, scene.seed)
+            rs.reverberation(scene, setup, ping, scene.seed, view)
             if len(rs.hit_sample):
                 plotter.add_points(to_world(rs.hit_sample), color="saddlebrown", point_size=3,
                                    render_points_as_spheres=True, label="ray hits (sample)")
@@ -85,7 +113,7 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     t = draw_targets(scene, ping, pose)
     if len(t):
         inside = counting_volume_of(setup, t.position_sonar_m)
-        shadow = rs.shadowed(t.position_sonar_m) if rs is not None else np.zeros(len(t), bool)
+        shadow = rs.shadowed(t.position_sonar_m, view) if rs is not None else np.zeros(len(t), bool)
         for sel, col, lab in ((inside & ~shadow, "limegreen", "targets inside"),
                               (~inside & ~shadow, "black", "targets outside"),
                               (shadow, "red", "targets shadowed")):
@@ -93,6 +121,7 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
                 plotter.add_points(t.position_world_m[sel], color=col,
                                    point_size=14 if col == "red" else 10,
                                    render_points_as_spheres=True, label=lab)
+    _draw_motion(plotter, scene, setup, t)
     plotter.add_legend(bcolor="white", size=(0.22, 0.25))
     plotter.show_grid(xtitle="x forward (m)", ytitle="y starboard (m)", ztitle="z depth (m)")
     # a vertical fan (down-looking sonar) is seen square-on from aft of it and a little above; a

@@ -73,6 +73,30 @@ def test_positions_after_n_pings_are_the_integrated_motion():
     assert np.std(np.diff(np.unwrap(heading, axis=0), axis=0)) == pytest.approx(math.radians(20), rel=0.3)
 
 
+def test_a_school_turning_together_keeps_its_polarisation():
+    """Turning on their own, 40 fish at 20° per √s lose polarisation as exp(−σ²t/2) (0.9 → 0.15
+    after 30 s); turning together they keep every heading difference, so the mean resultant
+    length is the same at every ping."""
+    def resultant(together):
+        sc = scene(SCHOOL.replace("substeps: 1", f"substeps: 1, turn_together: {str(together).lower()}"))
+        from acoustics.simulation.setup import make_setup
+        from acoustics.targets.draw import draw_targets
+        setup = make_setup(sc)
+        out = []
+        for p in (0, 30):
+            v = draw_targets(sc, p, setup.pose_at(p)).velocity_world_m_s
+            out.append(np.arctan2(v[:, 1], v[:, 0]))
+        return out
+    h0, h30 = resultant(True)
+    np.testing.assert_allclose(np.angle(np.exp(1j * (h30 - h0))), np.angle(np.exp(1j * (h30 - h0)))[0],
+                               atol=1e-9)                       # one turn for all
+    h0, h30 = resultant(False)
+    r0, r30 = (abs(np.mean(np.exp(1j * h))) for h in (h0, h30))
+    # 40 nearly random headings: a resultant length of about 0.14 from chance alone
+    assert r30 == pytest.approx(r0 * math.exp(-math.radians(20) ** 2 * 30 / 2), abs=0.2)
+    assert r30 < r0 - 0.15
+
+
 def test_a_ping_alone_is_the_same_ping_of_a_run():
     """Ping independence survives motion: ping 6 alone puts every fish where a full run does."""
     sc = scene(SCHOOL)
@@ -81,6 +105,29 @@ def test_a_ping_alone_is_the_same_ping_of_a_run():
     k = full["target_ping_index"] == 6
     for key in ("target_world_x", "target_world_y", "target_world_z", "target_id"):
         np.testing.assert_array_equal(alone[key], full[key][k])
+
+
+def test_straight_swimming_with_substeps_is_exact():
+    """Without turning the velocity never changes: x(t_p) = x(0) + v t_p whatever the
+    sub-steps, and ping 37 (third block of the cached track) alone equals the same ping after
+    pings 0–40 were computed."""
+    from acoustics.simulation.setup import make_setup
+    from acoustics.targets import motion
+    from acoustics.targets.draw import draw_targets
+    sc = scene(SCHOOL.replace("turn_sd_deg_per_s: 20", "turn_sd_deg_per_s: 0")
+               .replace("vertical_sd_m_s: 0.02", "vertical_sd_m_s: 0").replace("substeps: 1", "substeps: 4")
+               .replace("interval_s: 1.0", "interval_s: 0.7"))
+    setup = make_setup(sc)
+    motion._TRACKS.clear()
+    alone = draw_targets(sc, 37, setup.pose_at(37))
+    motion._TRACKS.clear()
+    first = draw_targets(sc, 0, setup.pose_at(0))
+    for p in range(1, 41):
+        draw_targets(sc, p, setup.pose_at(p))
+    again = draw_targets(sc, 37, setup.pose_at(37))
+    np.testing.assert_array_equal(alone.position_world_m, again.position_world_m)
+    np.testing.assert_allclose(again.position_world_m,
+                               first.position_world_m + first.velocity_world_m_s * 37 * 0.7, atol=1e-9)
 
 
 def test_swimming_needs_persistent_fish():
@@ -134,6 +181,21 @@ def test_platform_pitch_moves_the_target_in_interferometric_elevation():
     np.testing.assert_allclose(w1, [0, 0, 20], atol=0.03)
 
 
+@pytest.mark.parametrize("stop_and_hop", [True, False])
+def test_a_platform_turning_while_the_echo_flies(stop_and_hop):
+    """Rolling at 10°/s through upright at ping 1, the sonar has turned a further ω·2r/c = 0.26°
+    by the time the echo of a target 20 m below arrives: the receive leg's pose is the one the
+    image's azimuth reports, unless stop-and-hop keeps the transmit pose (then exactly the roll
+    at transmission, 0°)."""
+    sc = scene("pings: {count: 2}\nsonar: {motion: {kind: series, series: {time_s: [0, 1, 2], "
+               "roll_deg: [-10, 0, 10]}}}\neffects: {stop_and_hop: %s}\n"
+               "targets:\n  points:\n    - {frame: world, position_m: [0, 0, 20]}\n"
+               % str(stop_and_hop).lower())
+    (_, _, _), (az1, _, w1) = _detected_angles(sc)
+    lag = 0.0 if stop_and_hop else 10.0 * 2 * 20.0 / 1530.0
+    assert math.degrees(az1) == pytest.approx(lag, abs=0.05)
+
+
 def test_a_swell_and_a_csv_series_give_the_poses_they_describe(tmp_path):
     from acoustics.scene import load_scene
     from acoustics.simulation.setup import make_setup
@@ -184,7 +246,8 @@ def test_doppler_of_a_closing_target_shifts_its_range_as_the_lfm_coupling_predic
 
 # ------------------------------------------------------------------ meshes seen from a moving sonar
 MOVING_MESHES = """pings: {count: 3}
-sonar: {motion: {kind: series, series: {time_s: [0, 2], roll_deg: [0, 4], pitch_deg: [0, -1.5],
+sonar: {pose: {position_m: [0, 0, 1.0]},
+        motion: {kind: series, series: {time_s: [0, 2], roll_deg: [0, 4], pitch_deg: [0, -1.5],
                  yaw_deg: [0, 10], heave_m: [0, 0.6]}}}
 targets:
   points:
@@ -266,3 +329,14 @@ def test_a_sonar_frame_mesh_rides_with_the_moving_sonar():
         assert view is None and rs is not setup.ray_scene
         got.append(rs.mesh_targets())
     np.testing.assert_allclose(got[0].p_tx, got[1].p_tx, atol=1e-12)
+
+
+def test_motion_that_leaves_the_water_is_refused():
+    """A heave that lifts the sonar out of the water, or a straight path that leaves it by the
+    last ping, is a scene error naming the key (not a simulation of a sonar in the air)."""
+    with pytest.raises(acoustics.SceneError, match=r"sonar\.motion: .*above the sea surface"):
+        scene("pings: {count: 10}\nsonar: {pose: {position_m: [0, 0, 0.5]}, motion: {kind: swell, "
+              "swell: {heave_amplitude_m: 1.0}}}\n")
+    with pytest.raises(acoustics.SceneError, match=r"targets\.points\[0\]\.velocity_m_s: .*last ping"):
+        scene("pings: {count: 10}\ntargets:\n  points:\n"
+              "    - {frame: world, position_m: [0, 0, 2], velocity_m_s: [0, 0, -0.5]}\n")

@@ -100,10 +100,26 @@ def physical_problems(scene) -> list[tuple[str, str]]:
                             f"be in the water", key))
                 break
 
+    last_t = (scene.pings.count - 1) * scene.pings.interval_s
+    if scene.sonar.motion is not None and scene.sonar.motion.kind != "file":
+        # the platform's worst heave and roll over the run must keep the sonar wet
+        from acoustics.sonar.platform import PlatformMotion
+        motion = PlatformMotion.from_spec(scene.sonar.motion, scene.resolve_path)
+        t = np.arange(scene.pings.count) * scene.pings.interval_s
+        z = motion.poses(pose, t)[0][:, 2]
+        if z.min() < -1e-9:
+            out.append((f"the platform's motion lifts the sonar {-z.min():.3g} m above the sea "
+                        f"surface at t = {t[int(np.argmin(z))]:.3g} s (world z = 0 is the surface, z "
+                        f"is depth): mount it deeper or move it less", "sonar.motion"))
     if scene.targets.points:
         world = pose.to_world(point_positions_sonar(scene.targets.points, pose))
         for i, p in enumerate(world):
             check(p[None, :], f"targets.points[{i}]", f"the target at depth {p[2]:.3g} m")
+            v = scene.targets.points[i].velocity_m_s
+            if v is not None and last_t > 0:   # a straight line: its ends are its extremes
+                end = p + np.asarray(v, float) * last_t
+                check(end[None, :], f"targets.points[{i}].velocity_m_s",
+                      f"the moving target at the last ping (t = {last_t:.3g} s, depth {end[2]:.3g} m)")
     for i, pop in enumerate(scene.targets.populations):
         check(_region_samples(pop, pose), f"targets.populations[{i}]", "the population's region")
     return out

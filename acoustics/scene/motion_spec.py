@@ -1,9 +1,10 @@
 """Scene-file sections for motion: how fish swim, and how the platform moves.
 
 Motion is sampled at the ping times t_p = p x ``pings.interval_s`` (ping 0 at t = 0): targets
-advance between pings, the platform takes a new pose each ping. Within a ping nothing moves (the
-7 ms pulse and the 90 ms record are short against the motion; docs/accuracy.md, "within-ping
-motion", has the numbers).
+advance between pings, the platform takes a new pose each ping. Within a ping positions hold
+(the 7 ms pulse and the 90 ms record move a fish less than a range cell), but the Doppler shift
+of a closing speed does move its echo through the LFM's range–Doppler coupling: that is
+``effects.doppler`` (docs/accuracy.md, "within-ping motion", has the numbers).
 """
 from __future__ import annotations
 
@@ -22,8 +23,10 @@ class SwimSpec(ConfigModel):
 
     Each target gets a speed (normal, truncated at 0) and a heading in the horizontal plane
     (von Mises about ``heading_deg`` with the concentration that gives the mean resultant
-    length ``polarisation``), then turns by a random walk of ``turn_sd_deg_per_s`` per √s; its
-    depth changes with a speed drawn from N(0, ``vertical_sd_m_s``). Positions are the exact
+    length ``polarisation``), then turns by a random walk of ``turn_sd_deg_per_s`` per √s (its
+    own, or the population's with ``turn_together``); its depth changes with a speed drawn from
+    N(0, ``vertical_sd_m_s``). Fish swim independently otherwise: nothing pulls a school
+    together, so a school whose headings spread by δ widens by about v t sin δ. Positions are the exact
     integral of the piecewise-constant velocity over ``substeps`` steps per ping interval.
     """
 
@@ -36,10 +39,14 @@ class SwimSpec(ConfigModel):
     """Mean resultant length of the headings: 1 all parallel, 0 uniformly random."""
     turn_sd: AngleDeg(0, 3600) = Field(0.0, alias="turn_sd_deg_per_s")
     """Heading random walk: standard deviation (deg) of the turn over one second."""
+    turn_together: bool = False
+    """All targets of the population turn by the same increments (a school changing course
+    together): the headings' polarisation holds over the run. false: each turns on its own and
+    the mean resultant length decays as exp(−σ_turn² t / 2)."""
     vertical_sd_m_s: NonNegativeReal = Field(0.0, le=5.0)
-    substeps: PositiveCount = Field(1, le=1000)
+    substeps: PositiveCount = Field(10, le=1000)
     """Integration steps per ping interval (turning changes the heading once per step): an
-    accuracy knob (docs/accuracy.md)."""
+    accuracy knob (docs/accuracy.md, "Swimming: integration sub-steps"); exact without turning."""
 
 
 class SwellSpec(ConfigModel):

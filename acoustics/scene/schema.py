@@ -182,6 +182,11 @@ class EffectsSpec(ConfigModel):
     0.5 m/s biases the range by 7 cm, 2 m/s by 29 cm (docs/accuracy.md, "within-ping motion")."""
     doppler_bin_hz: PositiveReal = Field(5.0, le=1000.0)
     """Doppler grid of the fast synthesis (Hz), an accuracy knob (docs/accuracy.md)."""
+    stop_and_hop: bool = True
+    """A moving platform hears each echo from the pose it had when it transmitted (the
+    stop-and-hop approximation). false: the receive leg starts from the pose at the echo's
+    arrival, t_p + 2r/c — a roll rate ω turns the image by ω·2r/c, 0.13° at 25 m in a 5°, 8 s
+    roll (docs/accuracy.md, "within-ping motion")."""
     ray_threads: PositiveCount | None = None
     """Threads for ray batches (default: every core)."""
 

@@ -11,7 +11,8 @@ from acoustics.simulation.stages import StageLog
 from acoustics.synthesis.receiver import band_limited_noise, quantize
 from acoustics.synthesis.scatterers import VirtualScatterers
 from acoustics.synthesis.synthesize import synthesize
-from acoustics.targets.draw import TargetSet, draw_targets
+from acoustics.targets.draw import (TargetSet, draw_targets, has_swimbladders,
+                                    swimbladder_backscatter)
 
 __all__ = ["simulate_ping", "doppler_shift_hz"]
 
@@ -59,7 +60,10 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
     n_ch = setup.sonar.n_channels
     pose = setup.pose_at(ping)
     with log.stage("targets"):
-        targets = draw_targets(scene, ping, pose, seed=seed)
+        targets = draw_targets(scene, ping, pose, seed=seed, swimbladders=False)
+    if has_swimbladders(scene) and len(targets):
+        with log.stage("swimbladder_ts"):
+            targets = swimbladder_backscatter(scene, targets, ping, pose, seed)
     strength = targets.rho_m * np.exp(1j * targets.phase_rad)
     rs, view = setup.ray_scene_at(scene, pose, log)
     shadowed = np.zeros(len(targets), bool)
@@ -67,7 +71,12 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
         with log.stage("occlusion"):
             shadowed = rs.shadowed(targets.position_sonar_m, view)
     direct = ~shadowed
-    parts = [VirtualScatterers(targets.position_sonar_m[direct], targets.position_sonar_m[direct],
+    p_rx = targets.position_sonar_m
+    if not fx.stop_and_hop and setup.platform is not None and len(targets):
+        with log.stage("platform_in_flight"):
+            p_rx = setup.platform.at_arrival(setup.sonar.pose, ping * setup.interval_s,
+                                             targets.position_world_m, setup.medium.sound_speed_m_s)
+    parts = [VirtualScatterers(targets.position_sonar_m[direct], p_rx[direct],
                                strength[direct], np.full(int(direct.sum()), "direct"))]
     if rs is not None and fx.multipath_order > 0 and rs.planes and len(targets):
         with log.stage("multipath"):

@@ -148,6 +148,42 @@ class PlatformMotion:
         position = rot @ np.asarray(mount.position_m, float) + np.array([0.0, 0.0, -heave])
         return Pose(position, rot @ np.asarray(mount.rotation, float))
 
+    def poses(self, mount: Pose, t_s):
+        """The sonar's world poses at many times: positions (n, 3) in m and rotations (n, 3, 3)
+        (columns the sonar axes in world coordinates), for times ``t_s`` of shape (n,)."""
+        roll, pitch, yaw, heave = self.attitude(np.asarray(t_s, float).reshape(-1))
+        rot = attitude_rotation(roll, pitch, yaw)                              # (n, 3, 3)
+        position = rot @ np.asarray(mount.position_m, float)
+        position[:, 2] -= heave
+        return position, rot @ np.asarray(mount.rotation, float)
+
+    def at_arrival(self, mount: Pose, t_s: float, points_world_m, sound_speed_m_s: float):
+        """Where world points are in the sonar frame of the moment their echoes arrive.
+
+        The echo of a point at range r from the sonar (transmitted at ``t_s``) arrives at
+        t_s + 2r/c; by then the platform has turned and heaved a little. The stop-and-hop
+        approximation (``effects.stop_and_hop``) keeps the transmit pose for the receive leg;
+        this gives the receive leg's start instead.
+
+        Parameters
+        ----------
+        mount : Pose
+        t_s : float
+            Transmission time (s).
+        points_world_m : array_like, shape (n, 3)
+        sound_speed_m_s : float
+
+        Returns
+        -------
+        ndarray, shape (n, 3)
+            Sonar-frame positions (m) at each point's arrival time.
+        """
+        p = np.asarray(points_world_m, float).reshape(-1, 3)
+        at_tx = self.pose(mount, t_s)
+        r = np.linalg.norm(p - at_tx.position_m, axis=1)
+        position, rot = self.poses(mount, t_s + 2.0 * r / sound_speed_m_s)
+        return np.einsum("nji,nj->ni", rot, p - position)
+
 
 def pose_at_time_zero(scene) -> Pose:
     """The sonar's world pose at ping 0 (t = 0): where moving targets given relative to the

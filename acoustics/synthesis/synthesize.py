@@ -33,6 +33,10 @@ __all__ = ["METHODS", "fractional_delay_table", "synthesize"]
 
 METHODS = ("fast", "exact")
 _TABLE_PHASES = 2048  # linear interpolation between phases: error < 1e-7 of the peak
+#: a Doppler grid frequency costs about as much as this many echoes synthesised exactly (a
+#: forward FFT of 16 channels vs 16 x 320 envelope samples each; measured in
+#: benchmarks/accuracy.py, "within-ping motion")
+_EXACT_PER_BIN = 3.0
 
 
 def _kaiser_beta(attenuation_db: float) -> float:
@@ -112,9 +116,11 @@ def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz
         the sonar): the echo is u(t − τ) e^{j2π f_d (t − τ)} e^{−j2πf0τ} (narrowband: the
         carrier shifts, the envelope's 10⁻³ compression is neglected). None: no Doppler.
     doppler_bin_hz : float
-        ``fast`` only: scatterers share Doppler-shifted replicas on a grid of this step, each
-        split linearly between its two neighbours; the phase error over a pulse of length T is at
-        most (π Δf T)²/2 (docs/accuracy.md, "Doppler").
+        ``fast`` only: shifted scatterers share Doppler-shifted replicas on a grid of this step,
+        each split linearly between its two neighbours; the phase error over a pulse of length T
+        is at most (π Δf T)²/2 (docs/accuracy.md, "within-ping motion"). When the shifted
+        scatterers are fewer than about 3 per occupied grid frequency they are synthesised
+        exactly instead (cheaper, and the reference).
 
     Returns
     -------
@@ -146,17 +152,29 @@ def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz
         return _fast(model, p, q, pulse, rate_hz, n_samples, t0_s, kernel_length, int(oversampling), prx)
     if not doppler_bin_hz > 0:
         raise ValueError(f"doppler_bin_hz must be > 0, got {doppler_bin_hz}")
-    # Doppler bins: each scatterer split linearly between the two replicas shifted by the grid
-    # frequencies around its own; the bins' spectra add up before one inverse FFT
-    pos = fd / doppler_bin_hz
+    # Doppler bins: each shifted scatterer split linearly between the two replicas shifted by
+    # the grid frequencies around its own; the bins' spectra add up before one inverse FFT
+    moving = np.flatnonzero(fd != 0)
+    still = np.flatnonzero(fd == 0)
+    pos = fd[moving] / doppler_bin_hz
     lo = np.floor(pos).astype(np.int64)
     frac = pos - lo
-    groups = []
-    for b in np.unique(np.concatenate([lo, lo + 1])):
+    bins = np.unique(np.concatenate([lo, lo + 1]))
+    groups = [(0.0, still, np.ones(still.size))] if still.size else []
+    if moving.size < _EXACT_PER_BIN * bins.size:
+        # few shifted echoes for the grid frequencies they occupy: each one exactly is cheaper
+        # (and is the reference)
+        part = _exact(model, p[moving], q[moving], pulse, rate_hz, n_samples, t0_s,
+                      None if prx is None else prx[moving], fd[moving])
+        if not groups:
+            return part
+        return part + _fast(model, p, q, pulse, rate_hz, n_samples, t0_s, kernel_length,
+                            int(oversampling), prx, groups=groups)
+    for b in bins:
         w = np.where(lo == b, 1.0 - frac, 0.0) + np.where(lo + 1 == b, frac, 0.0)
         k = np.flatnonzero(w > 0)
         if k.size:
-            groups.append((float(b) * doppler_bin_hz, k, w[k]))
+            groups.append((float(b) * doppler_bin_hz, moving[k], w[k]))
     return _fast(model, p, q, pulse, rate_hz, n_samples, t0_s, kernel_length, int(oversampling),
                  prx, groups=groups)
 
