@@ -456,5 +456,177 @@ def mesh_resolution():
               "curvature near the specular point.")
 
 
+@knob
+def within_ping_motion():
+    """Does motion within a ping matter? Doppler, range migration and the platform's turn in flight."""
+    c, f0 = preset.SOUND_SPEED_M_S, preset.CENTER_FREQUENCY_HZ
+    T, B = preset.PULSE_DURATION_S, preset.BANDWIDTH_HZ
+    cell = c / (2 * B)
+    record = preset.SAMPLES_PER_PING / preset.SAMPLE_RATE_HZ
+    rows = []
+    for v in (0.1, 0.5, 1.0, 2.0, 0.45):
+        fd = 2 * v * f0 / c
+        shift = c / 2 * fd * T / B
+        rows.append([f"{v:g}" + (" (heave of a 0.5 m, 7 s swell)" if v == 0.45 else ""), f"{fd:.0f}",
+                     f"{shift * 100:.1f}", f"{shift / cell:.2f}", f"{v * T * 1000:.1f}",
+                     f"{v * record * 100:.1f}", f"{fd / B * 100:.1f}"])
+    # the platform turning while the echo flies: a sinusoidal roll's largest rate, 2πA/P
+    r_far = 25.0
+    turn_rows = []
+    for amp, period in ((2.0, 10.0), (5.0, 8.0), (10.0, 8.0), (15.0, 6.0)):
+        w = 2 * np.pi * amp / period                     # deg/s
+        turn = w * 2 * r_far / c                         # deg
+        across = np.radians(turn) * r_far
+        turn_rows.append([f"{amp:g}° / {period:g} s", f"{w:.1f}", f"{turn:.3f}",
+                          f"{across * 100:.1f}", f"{across / cell:.2f}"])
+    # the knobs: Doppler on the fast synthesis' frequency grid vs the exact per-scatterer shift
+    import warnings
+
+    from acoustics import SceneWarning, load_scene
+    from acoustics.simulation.setup import make_setup
+    from acoustics.synthesis.synthesize import synthesize
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SceneWarning)
+        setup = make_setup(load_scene(ROOT / "scenes" / "two_targets.yaml"))
+    from acoustics.synthesis import synthesize as synth_module
+    rng = np.random.default_rng(3)
+    n = 50
+    pts = np.column_stack([rng.uniform(-1, 1, n), rng.uniform(-0.1, 0.1, n), rng.uniform(14, 25, n)])
+    q = np.exp(1j * rng.uniform(-np.pi, np.pi, n))
+    fd = rng.uniform(-600, 600, n)                     # closing speeds up to ±1 m/s
+    kw = dict(pulse=setup.pulse, rate_hz=preset.SAMPLE_RATE_HZ, n_samples=preset.SAMPLES_PER_PING)
+    ref = synthesize(setup.model, pts, q, method="exact", doppler_hz=fd, **kw)
+    knob_rows = []
+    t_none = best_time(lambda: synthesize(setup.model, pts, q, **kw))
+    none = synthesize(setup.model, pts, q, **kw)
+    knob_rows.append(["off (no Doppler)", f"{db(np.abs(none - ref).max() / np.abs(ref).max()):.1f}",
+                      f"{t_none * 1e3:.1f}", ""])
+    saved = synth_module._EXACT_PER_BIN
+    synth_module._EXACT_PER_BIN = 0.0                  # the grid alone, whatever it costs
+    try:
+        for step in (20.0, 10.0, 5.0, 2.0, 1.0):
+            out = synthesize(setup.model, pts, q, doppler_hz=fd, doppler_bin_hz=step, **kw)
+            t = best_time(lambda: synthesize(setup.model, pts, q, doppler_hz=fd, doppler_bin_hz=step, **kw))
+            bound = (np.pi * step * T) ** 2 / 2
+            knob_rows.append([f"{step:g} Hz" + (" (default)" if step == 5.0 else ""),
+                              f"{db(np.abs(out - ref).max() / np.abs(ref).max()):.1f}",
+                              f"{t * 1e3:.1f}", f"{db(bound):.1f}"])
+    finally:
+        synth_module._EXACT_PER_BIN = saved
+    # which path the default takes, and what it costs: these 50, and a polarised school of 400
+    # whose closing speeds spread ±0.27 m/s
+    m = 400
+    pts2 = np.column_stack([rng.uniform(-2, 2, m), rng.uniform(-0.15, 0.15, m), rng.uniform(15, 25, m)])
+    q2 = np.exp(1j * rng.uniform(-np.pi, np.pi, m))
+    fd2 = rng.normal(0.0, 50.0, m).clip(-150, 150)
+    auto_rows = []
+    for label, (pp, qq, ff) in ((f"{n} echoes, ±600 Hz", (pts, q, fd)), (f"{m} echoes, ±150 Hz", (pts2, q2, fd2))):
+        bins = np.unique(np.concatenate([np.floor(ff / 5.0), np.floor(ff / 5.0) + 1])).size
+        path = "exact" if len(ff) < saved * bins else "grid"
+        r = synthesize(setup.model, pp, qq, method="exact", doppler_hz=ff, **kw)
+        o = synthesize(setup.model, pp, qq, doppler_hz=ff, **kw)
+        t_auto = best_time(lambda: synthesize(setup.model, pp, qq, doppler_hz=ff, **kw))
+        t_ex = best_time(lambda: synthesize(setup.model, pp, qq, method="exact", doppler_hz=ff, **kw))
+        t_off = best_time(lambda: synthesize(setup.model, pp, qq, **kw))
+        err = np.abs(o - r).max() / np.abs(r).max()
+        auto_rows.append([label, f"{bins}", path, f"{db(err):.1f}" if err > 0 else "0 (the reference)",
+                          f"{t_auto * 1e3:.1f}", f"{t_ex * 1e3:.1f}", f"{t_off * 1e3:.1f}"])
+    return ("## Within-ping motion: Doppler matters, range migration does not, the platform's "
+            "turn in flight is a knob\n\n"
+            "Between pings targets and platform move (tests/test_motion.py); within a ping the "
+            "simulator could hold everything still. Does that matter? Fish swim 0.1–2 m/s and a "
+            f"platform in a swell heaves at up to ~0.5 m/s. **Range migration** does not: a "
+            f"target moves v·T during the {T * 1e3:g} ms pulse and v·(record) during the "
+            f"{record * 1e3:.0f} ms record — well under the {cell * 100:.1f} cm range cell for the "
+            "pulse, and the record's figure only says the far end of the record sees the target "
+            "a little later, which the per-ping positions already carry. The **Doppler shift** "
+            "2 v f0 / c does matter: the LFM pulse's range–Doppler coupling moves the matched "
+            "filter's peak by f_d T / B, a range bias of (c/2) f_d T / B — several range cells "
+            "at swimming speeds (the correlation loss, f_d / B, stays small):\n\n"
+            + table(["closing speed (m/s)", "f_d (Hz)", "range bias (cm)", "in range cells",
+                     "moved during the pulse (mm)", "moved during the record (cm)", "f_d / B (%)"], rows)
+            + "\n\nSo `effects.doppler: true` gives each direct echo its shift (the target's "
+              "velocity less the platform's, along the line of sight); off by default, on in the "
+              "scenes of moving fish. Tested: a target closing at 1 m/s reads 15 cm nearer, as "
+              "−(c/2) f_d T/B predicts (tests/test_motion.py). Not included: Doppler of multipath "
+              "and reverberation paths, and the envelope's compression (1 + 2v/c ≈ 1.001).\n\n"
+              "**The platform turns while the echo flies.** A rolling platform has turned by "
+              f"ω·2r/c when the echo of a target at r arrives (r = {r_far:g} m here); the image's "
+              "azimuth follows the receive array, so the target appears turned by that much "
+              "(its largest rate in a sinusoidal roll of amplitude A and period P is 2πA/P):\n\n"
+            + table(["roll", "largest rate (°/s)", "turn in flight (°)", "across the beam (cm)",
+                     "in range cells"], turn_rows)
+            + "\n\nComparable to the Doppler bias of a heaving platform, so it is built: "
+              "`effects.stop_and_hop: false` starts each direct echo's receive leg from the pose "
+              "of its arrival, t_p + 2r/c (on by default: stop-and-hop, the transmit pose for "
+              "both legs). Tested: rolling at 10°/s, a target 20 m below reads 0.26° off, as "
+              "ω·2r/c says, and 0° with stop-and-hop (tests/test_motion.py). Heave in flight "
+              "(0.5 m/s x 33 ms = 1.6 cm) is below the range cell; its Doppler is in "
+              "`effects.doppler`.\n\n"
+              "**The Doppler grid** (`effects.doppler_bin_hz`): the fast synthesis groups "
+              "scatterers on a grid of step Δf, each split linearly between its two neighbouring "
+              "shifted replicas; the bins' spectra add up before one inverse FFT. Reference: the "
+              f"exact synthesis with each scatterer's own shift; {n} scatterers with shifts up to "
+              "±600 Hz, 16 channels; worst sample error re the peak, and the bound (π Δf T)²/2 of "
+              "the interpolation's phase error:\n\n"
+            + table(["Doppler grid", "error (dB)", "time (ms)", "bound (dB)"], knob_rows)
+            + "\n\nThe error falls as Δf² to the fast synthesis' own floor (section *synthesis*, "
+              "about −70 dB). Each occupied grid frequency costs one forward FFT per channel — "
+              "about as much as 3 echoes synthesised exactly (measured below) — so the default takes whichever "
+              "is cheaper for the ping: the exact synthesis (the reference) when the shifted "
+              "echoes are fewer than 3 per occupied grid frequency, the grid otherwise. At the "
+              "default grid, with the times of the exact synthesis and of no Doppler:\n\n"
+            + table(["shifted echoes", "grid frequencies", "path", "error (dB)", "time (ms)",
+                     "exact (ms)", "no Doppler (ms)"], auto_rows))
+
+
+@knob
+def motion_substeps():
+    """Swimming: integration steps per ping interval vs a 400-step integration of the same path."""
+    from acoustics.scene.motion_spec import SwimSpec
+    from acoustics.targets.motion import SwimTrack, swim_start
+    swim = SwimSpec.model_validate({"speed_m_s": 1.0, "turn_sd_deg_per_s": 30.0, "polarisation": 0.5})
+    default = SwimSpec.model_fields["substeps"].default
+    n, pings, fine = 400, 60, 400
+    rng = np.random.default_rng(5)
+    speed, heading0, _ = swim_start(swim, n, np.random.default_rng(6))
+    # one continuous heading random walk sampled 400 times a second; a coarse integration holds
+    # the heading of the start of each of its steps: the error of the same path, step by step
+    turns = swim.turn_sd * np.sqrt(1.0 / fine) * rng.standard_normal((pings * fine, n))
+    heading = heading0 + np.vstack([np.zeros((1, n)), np.cumsum(turns, axis=0)])[:-1]
+
+    def track(sub):
+        h = heading[:: fine // sub]
+        v = np.stack([speed * np.cos(h), speed * np.sin(h)], -1) / sub
+        return np.cumsum(v, axis=0)[sub - 1::sub]          # (pings, n, 2): after each ping
+    ref = track(fine)
+    rows = []
+    for sub in (1, 2, 5, 10, 20, 50):
+        err = np.linalg.norm(track(sub) - ref, axis=-1)
+
+        def run():
+            SwimTrack(np.zeros((n, 3)), speed, heading0, np.zeros(n), turn_sd_rad_per_s=swim.turn_sd,
+                      interval_s=1.0, substeps=sub, turn_rng_seed=np.random.SeedSequence(9)).extend(pings)
+        dt = best_time(run)
+        rows.append([f"{sub}" + (" (default)" if sub == default else ""),
+                     f"{np.median(err[0]) * 100:.1f}", f"{np.percentile(err[0], 95) * 100:.1f}",
+                     f"{np.median(err[-1]) * 100:.1f}", f"{dt * 1e3:.1f}"])
+    return ("## Swimming: integration sub-steps\n\n"
+            "`swim.substeps`: the heading of a swimming fish follows a random walk "
+            "(`turn_sd_deg_per_s` per √s) and the position integrates a velocity held constant "
+            "over each sub-step of the ping interval. Reference: the same heading path integrated "
+            f"at {fine} sub-steps. {n} fish at 1 m/s turning 30° per √s (strong turning), one-second "
+            f"pings; distance to the reference after one ping and after {pings}, and the time to "
+            f"compute the whole run's tracks ({n} fish, {pings} pings):\n\n"
+            + table(["sub-steps per ping", "after 1 ping: median (cm)", "95th percentile (cm)",
+                     f"after {pings} pings: median (cm)", "ms for the run"], rows)
+            + "\n\nThe error after one ping scales as v σ_turn Δt^{3/2} / sub-steps (it is the "
+              "lateral drift the held heading misses); the default keeps it under the 3.8 cm "
+              "range cell for this strong turning at a cost of milliseconds per run. Without "
+              "turning every sub-step count is exact (straight lines; tested). The coarse "
+              "settings are still valid swimming models of their own (a correlated random walk "
+              "turning once per step): the table says how far they stray from the continuous one.\n")
+
+
 if __name__ == "__main__":
     REPORT.main()
