@@ -53,8 +53,9 @@ def _draw_motion(plotter, scene, setup, targets, max_tracks=300):
     lines = [pv.lines_from_points(np.array(v)) for v in tracks.values() if len(v) > 1]
     if lines:
         merged = lines[0].merge(lines[1:]) if len(lines) > 1 else lines[0]
-        plotter.add_mesh(merged, color="royalblue", line_width=1.5, opacity=0.6,
-                         label=f"target tracks ({len(pings)} pings)")
+        few = len(lines) <= 10
+        plotter.add_mesh(merged, color="royalblue", line_width=4 if few else 1.5,
+                         opacity=1.0 if few else 0.6, label=f"target tracks ({len(pings)} pings)")
 
 
 def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, interactive: bool = False,
@@ -136,6 +137,13 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     else:
         view_w = -x_w - 0.5 * z_w + 0.1 * up
     view_w = view_w / np.linalg.norm(view_w)
+    if len(t) and t.velocity_world_m_s is not None:
+        # targets moving along the line of sight would show as dots: look across their motion
+        d = np.array([*np.mean(t.velocity_world_m_s[:, :2], axis=0), 0.0])
+        if np.linalg.norm(d) > 1e-9 and abs(view_w @ d) > 0.7 * np.linalg.norm(d):
+            side = np.cross(up, d / np.linalg.norm(d)) * np.hypot(view_w[0], view_w[1])
+            view_w = side + view_w                 # half-way round: the fan and the tracks show
+            view_w = view_w / np.linalg.norm(view_w)
     plotter.camera.focal_point = focus
     plotter.camera.position = focus + 2.9 * span * view_w
     plotter.camera.up = tuple(up)

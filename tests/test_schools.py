@@ -90,3 +90,23 @@ def test_headings_have_the_requested_polarisation(polarisation):
 def test_too_dense_a_school_is_refused():
     with pytest.raises(Exception, match="at most 25 %"):
         school(count="count: 5000", nn=0.5)
+
+
+def test_the_batched_draw_is_sequential_rsa():
+    """Against the textbook one-candidate-at-a-time RSA on the same candidate stream (batches of
+    max(64, n) candidates, uniform in the ellipsoid): the same fish, in the same order."""
+    from acoustics.scene.targets_spec import SchoolPopulation
+    from acoustics.targets.schools import draw_school, ellipsoid_axes, uniform_in_ellipsoid
+    spec = SchoolPopulation.model_validate({"kind": "school", "center_m": [1, 2, 20], "semi_axes_m": [3, 2, 1.5],
+                                            "count": 300, "nearest_neighbour_m": 0.3, "redraw": False,
+                                            "heading_deg": 25})
+    rng = np.random.default_rng(11)
+    kept = []
+    while len(kept) < 300:
+        for c in uniform_in_ellipsoid(300, spec.semi_axes_m, rng):
+            if all(np.linalg.norm(c - k) >= 0.3 for k in kept):
+                kept.append(c)
+                if len(kept) == 300:
+                    break
+    expected = np.asarray(spec.center_m) + np.array(kept) @ ellipsoid_axes(spec.heading).T
+    np.testing.assert_allclose(draw_school(spec, 300, np.random.default_rng(11)), expected, atol=1e-12)
