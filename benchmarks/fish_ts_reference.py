@@ -1,10 +1,11 @@
 """Reference target strengths of pressure-release prolate spheroids from an independent model:
 the prolate spheroidal modal series (PSMS; Furusawa 1988) of ICES echoSMs.
 
-echoSMs is not a dependency of abacus; run this in a separate environment:
+echoSMs is not a dependency of abacus (it pulls in a modal-series stack abacus does not need at
+run time); the tests read only the values this script writes. Run it in a separate environment:
 
-    python -m venv /tmp/echosms && /tmp/echosms/bin/pip install echosms==0.24.0
-    /tmp/echosms/bin/python benchmarks/fish_ts_reference.py
+    python -m venv /work/venvs/echosms && /work/venvs/echosms/bin/pip install echosms==0.24.0
+    /work/venvs/echosms/bin/python benchmarks/fish_ts_reference.py
 
 It writes tests/data/psms_reference.json, which tests/test_fish_ts.py compares abacus' physical
 optics with. Tilt 0 exactly is left out: echoSMs' PSMS returns a value 2.3 dB above its own
@@ -20,8 +21,8 @@ import echosms
 from echosms import boundary_type as bt
 
 C, RHO, F = 1500.0, 1026.0, 420e3
-BLADDERS = [(0.030, 0.005), (0.050, 0.010), (0.060, 0.008)]   # semi-axes a, b (m): kb 8.8, 17.6, 14.1
-TILTS = [0.1, 0.5, 1.0, 2.0, 3.0, 5.0, 7.0, 10.0]
+BLADDERS = [(0.030, 0.005), (0.050, 0.010), (0.060, 0.008), (0.015, 0.0025)]   # a, b (m): kb 8.8, 17.6, 14.1, 4.4
+TILTS = [0.1, 0.5, 1.0, 2.0, 3.0, 5.0, 7.0, 10.0, 15.0, 20.0, 30.0, 45.0, 60.0, 90.0]
 
 model = echosms.PSMSModel()
 rows = []

@@ -211,13 +211,15 @@ def _exact(model, p, q, pulse, fs, n, t0, prx=None, fd=None):
 
 def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
     """``groups``: (shift_hz, indices, weights) of Doppler-binned scatterers, each convolved with
-    the replica shifted by shift_hz; None: one group, unshifted."""
+    the replica shifted by shift_hz; None: one group, unshifted. A Doppler group whose echoes
+    span a short stretch of the record is convolved over that stretch alone (overlap-add)."""
     fine = fs * up
     replica = pulse.replica(fine)
     m = replica.size
     # room for an echo that starts up to a pulse length plus half a kernel before sample 0
     q0 = m + taps
     n_out = q0 + up * n + taps
+    doppler = groups is not None
     if groups is None:
         groups = [(0.0, slice(None), 1.0)]
     widest = max(abs(g[0]) for g in groups)
@@ -225,15 +227,45 @@ def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
     table = fractional_delay_table(int(taps), (fine - band) / fine)
     nfft = sfft.next_fast_len(n_out + m - 1)  # linear, not circular, convolution
     spec = None
+    acc = None
+    if doppler:
+        c = model.medium.sound_speed_m_s
+        reach = max(float(np.max(np.linalg.norm(model.receiver.center_m, axis=1))),
+                    float(np.linalg.norm(model.transmitter.phase_center_m)))
     for shift_hz, k, w in groups:
         rep = replica if not shift_hz else replica * np.exp(2j * np.pi * shift_hz * np.arange(m) / fine)
-        delta = spread_arrivals(model, p[k], q[k] * w, table=table, t0_s=t0, rate_hz=fine, q0=q0,
-                                n_out=n_out, receive_positions_m=None if prx is None else prx[k])
+        pk, qk, rk = p[k], q[k] * w, None if prx is None else prx[k]
+        if doppler:
+            # the stretch of the fine grid this group's echoes can touch: two legs from the
+            # sonar's origin, ± the arrays' reach, ± the kernel
+            path = np.linalg.norm(pk, axis=1) + np.linalg.norm(pk if rk is None else rk, axis=1)
+            g_lo = max(0, int(np.floor(((path.min() - 2 * reach) / c - t0) * fine + q0)) - taps - 2)
+            g_hi = min(n_out, int(np.ceil(((path.max() + 2 * reach) / c - t0) * fine + q0)) + taps + 2)
+            span = g_hi - g_lo
+            if span <= 0:
+                continue
+            if 2 * (span + m) < n_out + m:
+                delta = spread_arrivals(model, pk, qk, table=table, t0_s=t0 + (g_lo - q0) / fine,
+                                        rate_hz=fine, q0=0, n_out=span, receive_positions_m=rk)
+                nf = sfft.next_fast_len(span + m - 1)
+                part = sfft.fft(delta, nf, axis=1, workers=-1)
+                part *= sfft.fft(rep, nf)
+                y = sfft.ifft(part, axis=1, workers=-1)[:, :span + m - 1]
+                if acc is None:
+                    acc = np.zeros((delta.shape[0], nfft), complex)
+                acc[:, g_lo:g_lo + span + m - 1] += y
+                continue
+        delta = spread_arrivals(model, pk, qk, table=table, t0_s=t0, rate_hz=fine, q0=q0,
+                                n_out=n_out, receive_positions_m=rk)
         part = sfft.fft(delta, nfft, axis=1, workers=-1)
         part *= sfft.fft(rep, nfft)
         if spec is None:
             spec = part
         else:
             spec += part
-    full = sfft.ifft(spec, axis=1, workers=-1)
+    full = sfft.ifft(spec, axis=1, workers=-1) if spec is not None else None
+    if acc is not None:
+        full = acc if full is None else full + acc
+    if full is None:
+        return np.zeros((model.receiver.n_elements, n), complex)
     return full[:, q0:q0 + up * n:up]

@@ -7,7 +7,9 @@ and random phases are drawn every ping — a fish's echo fluctuates from ping to
 holds its place.
 
 Backscatter models (thesis §2.4.1): ``unit`` ρ = 1 m; ``fixed`` ρ = 10^(TS/20) m; ``rayleigh``
-ρ from a Rayleigh law of scale s truncated to [lo, hi] by inverse-CDF sampling.
+ρ from a Rayleigh law of scale s truncated to [lo, hi] by inverse-CDF sampling; ``swimbladder``
+ρ and phase from the fish's bladder at its incidence angle this ping (:func:`swimbladder_backscatter`,
+acoustics/targets/fish.py).
 A population given by density draws a Poisson number of targets with mean density × volume
 (a homogeneous Poisson point process), so counts vary from ping to ping as in the sea.
 """
@@ -20,7 +22,8 @@ import numpy as np
 from acoustics.frames import Pose, spherical_to_cartesian
 from acoustics.seeds import FIXED, ping_rng
 
-__all__ = ["TargetSet", "draw_targets", "point_positions_sonar", "draw_backscatter", "ID_BLOCK"]
+__all__ = ["TargetSet", "draw_targets", "point_positions_sonar", "draw_backscatter", "ID_BLOCK",
+           "has_swimbladders", "swimbladder_backscatter"]
 
 @dataclass(frozen=True, eq=False)
 class TargetSet:
@@ -87,7 +90,7 @@ def draw_backscatter(model, n: int, rng: np.random.Generator) -> np.ndarray:
     if model.model == "fixed":
         return np.full(n, 10.0 ** (model.ts_db / 20.0))
     if model.model == "swimbladder":
-        return np.ones(n)   # set from the bladder once positions are known (_with_fish)
+        return np.ones(n)   # set from the bladder once positions are known (swimbladder_backscatter)
     s, lo, hi = model.scale_m, model.lo_m, model.hi_m
     # Rayleigh CDF F(x) = 1 - exp(-x²/2s²); sample F uniformly between F(lo) and F(hi)
     f_lo = -np.expm1(-lo * lo / (2 * s * s))
@@ -123,7 +126,8 @@ def _population_positions(pop, n: int, rng: np.random.Generator, pose: Pose):
 ID_BLOCK = 1_000_000
 
 
-def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None) -> TargetSet:
+def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None,
+                 swimbladders: bool = True) -> TargetSet:
     """All point targets of one ping of a scene.
 
     Parameters
@@ -136,6 +140,9 @@ def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None) -> Ta
         The sonar's pose at this ping (for frame conversions).
     seed : int, optional
         Overrides ``scene.seed``.
+    swimbladders : bool
+        Give fish with a swimbladder model their echo (:func:`swimbladder_backscatter`); false
+        leaves their ρ = 1 for the caller to time that stage apart.
 
     Returns
     -------
@@ -201,34 +208,72 @@ def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None) -> Ta
     out = TargetSet(np.concatenate(parts_s), np.concatenate(parts_w), np.concatenate(rhos),
                     np.concatenate(phases), np.concatenate(groups).astype(int),
                     np.concatenate(ids), np.concatenate(vels))
-    return _with_fish(scene, out, ping, pose, seed)
+    return swimbladder_backscatter(scene, out, ping, pose, seed) if swimbladders else out
 
 
-def _with_fish(scene, targets: TargetSet, ping: int, pose: Pose, seed: int) -> TargetSet:
-    """Targets whose backscatter model is a swimbladder get ρ and phase from their bladder at
-    this ping's incidence angle (acoustics/targets/fish.py)."""
+def has_swimbladders(scene) -> bool:
+    """Whether any point target or population of the scene has a swimbladder backscatter model."""
     spec = scene.targets
-    fish_groups = [(g, pop.backscatter) for g, pop in enumerate(spec.populations)
-                   if pop.backscatter.model == "swimbladder"]
-    fish_points = [i for i, tp in enumerate(spec.points) if tp.backscatter.model == "swimbladder"]
-    if not fish_groups and not fish_points:
+    return any(t.backscatter.model == "swimbladder" for t in (*spec.points, *spec.populations))
+
+
+def swimbladder_backscatter(scene, targets: TargetSet, ping: int, pose: Pose, seed: int) -> TargetSet:
+    """The targets with ρ and phase of those whose backscatter model is a swimbladder set from
+    their bladder at this ping's incidence angle (acoustics/targets/fish.py); the others as they
+    were.
+
+    Each fish's heading is its swimming direction, else a uniform draw (once for the run when
+    the fish keep their identities, every ping when a population is redrawn); its tilt is drawn
+    every ping from N(``tilt_mean_deg``, ``tilt_sd_deg``), stream ``tilt`` (group 0: the
+    explicit points; j: population j), plus the climb angle of its path when it swims up or
+    down.
+
+    Parameters
+    ----------
+    scene : Scene
+    targets : TargetSet
+        As :func:`draw_targets` gives them with ``swimbladders=False``.
+    ping, seed : int
+    pose : Pose
+        The sonar's pose at this ping: its origin is the transmitter.
+    """
+    spec = scene.targets
+    if not has_swimbladders(scene) or len(targets) == 0:
         return targets
     from acoustics.targets.fish import fish_amplitude
     k = 2 * np.pi * scene.signal.center_frequency_hz / scene.medium.sound_speed_m_s
     rho, phase = targets.rho_m.copy(), targets.phase_rad.copy()
-    selections = [(np.flatnonzero(targets.group == -1)[fish_points], spec.points[i].backscatter, 0)
-                  for i in fish_points]
-    selections += [(np.flatnonzero(targets.group == g), model, g + 1) for g, model in fish_groups]
-    for idx, model, stream_group in selections:
+    v = (targets.velocity_world_m_s if targets.velocity_world_m_s is not None
+         else np.zeros((len(targets), 3)))
+    # (rows of the target set, their backscatter model per row, stream group, redrawn each ping)
+    groups = []
+    fish_points = [i for i, tp in enumerate(spec.points) if tp.backscatter.model == "swimbladder"]
+    if fish_points:
+        groups.append((np.flatnonzero(targets.group == -1)[fish_points],
+                       [spec.points[i].backscatter for i in fish_points], 0, False))
+    for g, pop in enumerate(spec.populations):
+        if pop.backscatter.model == "swimbladder":
+            idx = np.flatnonzero(targets.group == g)
+            groups.append((idx, [pop.backscatter] * idx.size, g + 1, pop.redraw))
+    for idx, models, stream_group, redrawn in groups:
         if idx.size == 0:
             continue
-        v = targets.velocity_world_m_s[idx]
-        swimming = np.hypot(v[:, 0], v[:, 1]) > 0
-        # heading: where the fish swims, else a direction of its own (fixed for the run)
-        own = ping_rng(seed, FIXED, "tilt", stream_group).uniform(-np.pi, np.pi, idx.size)
-        heading = np.where(swimming, np.arctan2(v[:, 1], v[:, 0]), own)
-        tilt = model.tilt_mean + model.tilt_sd * ping_rng(seed, ping, "tilt", stream_group).standard_normal(idx.size)
-        f, _ = fish_amplitude(model, targets.position_world_m[idx], pose.position_m, heading, tilt, k)
-        rho[idx] = np.abs(f)
-        phase[idx] = phase[idx] + np.angle(f)
+        rng = ping_rng(seed, ping, "tilt", stream_group)
+        z = rng.standard_normal(idx.size)
+        own = (rng if redrawn else ping_rng(seed, FIXED, "tilt", stream_group)).uniform(
+            -np.pi, np.pi, idx.size)
+        swimming = np.hypot(v[idx, 0], v[idx, 1]) > 0
+        heading = np.where(swimming, np.arctan2(v[idx, 1], v[idx, 0]), own)
+        mean = np.array([m.tilt_mean for m in models])
+        sd = np.array([m.tilt_sd for m in models])
+        # a fish rising or sinking as it swims points its nose along its path (z is down)
+        climb = np.where(swimming, np.arctan2(-v[idx, 2], np.hypot(v[idx, 0], v[idx, 1])), 0.0)
+        tilt = mean + sd * z + climb
+        # one table look-up per distinct bladder (a population has one; points may differ)
+        for model in {id(m): m for m in models}.values():
+            sel = np.array([m is model for m in models])
+            f, _ = fish_amplitude(model, targets.position_world_m[idx[sel]], pose.position_m,
+                                  heading[sel], tilt[sel], k)
+            rho[idx[sel]] = np.abs(f)
+            phase[idx[sel]] = phase[idx[sel]] + np.angle(f)
     return replace(targets, rho_m=rho, phase_rad=phase)
