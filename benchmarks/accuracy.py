@@ -725,7 +725,7 @@ def swimbladder():
             + table(["tilt (deg)", "TS, geometric optics (dB)", "point re mesh target (dB)",
                      "mesh target (s)", "point fish (s)"], point_rows)
             + "\n\nThe far-field point model costs one scatterer per fish instead of thousands of "
-              "facets per fish per ping (section *swimbladder* of performance.md).")
+              "facets per fish per ping (performance.md, *Scenes in motion*).")
 
 
 @knob
