@@ -10,6 +10,8 @@ use, so ``import processing`` is cheap)::
     images_of(tree) -> Images                  # the images as arrays
     detections_of(tree) -> xarray.Dataset      # one row per detection
     counts_of(tree) -> xarray.Dataset          # one row per ping
+    track(tree, settings=None) -> DataTree     # fish tracks across pings, scored against the truth
+    tracks_of(tree) -> xarray.Dataset          # one row per track, and per track point
     open_tree(path), write_tree(tree, path)    # the dataset I/O (atomic writes)
     ProcessingSettings, load_settings(path)
 """
@@ -31,6 +33,7 @@ _API = {
     "ConfigError": "processing.config",
     "ProcessingSettings": "processing.settings", "ImageSettings": "processing.settings",
     "load_settings": "processing.settings",
+    "track": "processing.tracks", "tracks_of": "processing.tracks",
 }
 
 __all__ = sorted(_API)

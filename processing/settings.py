@@ -13,7 +13,7 @@ from pydantic import Field, model_validator
 from .config import (AngleDeg, AngleRangeDeg, ConfigModel, Count, NonNegativeReal, PositiveCount, PositiveReal,
                      Real, read_yaml, validate_file)
 
-__all__ = ["ImageSettings", "NoiseSettings", "CfarSettings", "DetectSettings", "CountSettings",
+__all__ = ["ImageSettings", "NoiseSettings", "CfarSettings", "DetectSettings", "CountSettings", "TrackSettings",
            "ProcessingSettings", "load_settings", "WINDOWS"]
 
 #: windows accepted by name (scipy.signal.windows), range and spatial
@@ -144,12 +144,48 @@ class CountSettings(ConfigModel):
     3 dB width."""
 
 
+class TrackSettings(ConfigModel):
+    """Tracking detections across pings (processing/tracking.py): filter, gate, confirmation
+    and deletion rules, and the distance within which a track scores as a true fish."""
+
+    method: Literal["kalman", "alpha_beta"] = "kalman"
+    """Constant-velocity Kalman filter with RTS smoothing, or the thesis' αβ filter (§7)."""
+    gate_probability: Real = Field(0.99, gt=0.5, lt=1)
+    """Chi-square gate (3 degrees of freedom) on the innovation's Mahalanobis distance."""
+    accel_sd_m_s2: PositiveReal = Field(0.5, le=100)
+    """Process noise: white acceleration of this spectral density √q (m/s² per √(1/s))."""
+    initial_speed_sd_m_s: PositiveReal = Field(1.0, le=100)
+    """Velocity spread of a new track (m/s); the αβ gate's allowance for motion."""
+    alpha: Real = Field(0.5, gt=0, le=1)
+    """αβ position gain."""
+    beta: Real = Field(0.2, gt=0, le=2)
+    """αβ velocity gain."""
+    confirm_hits: PositiveCount = Field(3, le=100)
+    """Detections a tentative track needs within its first ``confirm_window`` pings."""
+    confirm_window: PositiveCount = Field(4, le=100)
+    max_misses: Count = Field(2, le=100)
+    """Consecutive pings without a detection after which a track ends."""
+    sidelobe_db: NonNegativeReal = Field(20.0, le=100)
+    """Single targets: a detection within 2.5 range cells of one this much stronger (dB) is
+    taken as its range or azimuth sidelobe (or ghost) and not tracked; 0 tracks everything."""
+    score_distance_m: PositiveReal = Field(0.3, le=10)
+    """A track's position within this distance of a true fish matches it (scoring)."""
+
+    @model_validator(mode="after")
+    def _window(self):
+        if self.confirm_window < self.confirm_hits:
+            raise ValueError(f"confirm_window ({self.confirm_window}) must be at least "
+                             f"confirm_hits ({self.confirm_hits})")
+        return self
+
+
 class ProcessingSettings(ConfigModel):
     """All processing settings."""
 
     image: ImageSettings = ImageSettings()
     detect: DetectSettings = DetectSettings()
     count: CountSettings = CountSettings()
+    track: TrackSettings = TrackSettings()
 
 
 def load_settings(path: str | Path) -> ProcessingSettings:

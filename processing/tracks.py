@@ -1,0 +1,302 @@
+"""The /Processing/Tracks product: fish tracked across pings, counted once, with a TS and a speed.
+
+:func:`track` takes a dataset with detections (or makes them), locates each in the world frame
+through its ping's pose, gives it a covariance from its own uncertainty and a beam-compensated
+TS, tracks them (processing/tracking.py) and writes /Processing/Tracks:
+
+* per track (dim ``track``): first and last ping, number of detections, mean smoothed velocity
+  (m/s, world frame) and speed, mean TS (10 log10 of the mean σ_bs of its compensated
+  detections), whether it passed through the counting volume, and — with ground truth — the true
+  fish it follows (majority of its matched pings) and that fish's speed and TS;
+* per track point (dim ``track_point``, flat with an index column ``point_track``, as ray-query
+  results are kept): ping index, the detection row (−1 where the track coasted), the smoothed
+  world position, TS uncompensated/compensated;
+* attributes: the track-based count (passages through the counting volume), the track-based
+  density (the fish-seconds the tracks spend inside the volume over the run's duration, divided
+  by the volume: the mean number present, which per-ping counts also estimate) and, with truth,
+  the multi-object-tracking scores (processing/track_scoring.py).
+"""
+from __future__ import annotations
+
+import numpy as np
+import xarray as xr
+
+from .dataset import ELEMENT_GROUP, DatasetError
+from .products import (DETECTIONS_GROUP, PROCESSING_GROUP, detect, detections_of, pose_of,
+                       resolve_settings, volume_of)
+
+__all__ = ["TRACKS_GROUP", "track", "tracks_of", "single_targets"]
+
+TRACKS_GROUP = "Processing/Tracks"
+
+
+def _ping_times_s(tree):
+    eg = tree[ELEMENT_GROUP].ds
+    t = eg["ping_time"].values
+    if np.issubdtype(t.dtype, np.datetime64):
+        return (t - t[0]) / np.timedelta64(1, "s")
+    return np.asarray(t, float) - float(t[0])
+
+
+def _baseline_m(tree):
+    eg = tree[ELEMENT_GROUP].ds
+    sub = np.asarray(eg["element_subarray"].values).astype(str)
+    xyz = np.stack([eg[f"element_{a}"].values for a in "xyz"], -1)
+    if not ((sub == "A").any() and (sub == "B").any()):
+        return None
+    return float(np.linalg.norm(xyz[sub == "B"].mean(0) - xyz[sub == "A"].mean(0)))
+
+
+def _rotation_per_row(tree, ping_rows):
+    pose = pose_of(tree)
+    if pose is None:
+        return None
+    rot = np.asarray(pose[1], float)
+    return rot[ping_rows] if rot.ndim == 3 else rot
+
+
+def _to_sonar(tree, ping_rows, world_m):
+    pose = pose_of(tree)
+    if pose is None:
+        return world_m
+    pos, rot = (np.asarray(a, float) for a in pose)
+    if rot.ndim == 3:
+        return np.einsum("nji,nj->ni", rot[ping_rows], world_m - pos[ping_rows])
+    return (world_m - pos) @ rot
+
+
+def single_targets(ping_rows, range_m, azimuth_rad, amplitude, *, range_resolution_m: float,
+                   azimuth_resolution_rad: float, sidelobe_db: float):
+    """Which detections are single targets rather than another's sidelobe or a second peak of
+    the same echo.
+
+    A strong echo is detected several times in its ping: at its own cell, in its range sidelobes
+    (±1–2 cells, 40–50 dB down) and at the same range in azimuth sidelobes and grating-lobe
+    ghosts (20–35 dB down for ABACUS). A detection is kept unless a stronger one of the same ping
+    lies within 2.5 range cells and is either more than ``sidelobe_db`` stronger, or within 1.5
+    azimuth cells (the same resolution cell). A weaker fish at the same range as a much stronger
+    one is lost with the sidelobes: the price of not tracking ghosts.
+
+    Parameters
+    ----------
+    ping_rows : array_like of int, shape (n,)
+    range_m, azimuth_rad, amplitude : array_like, shape (n,)
+        Range (m), azimuth (rad), image peak (counts).
+    range_resolution_m, azimuth_resolution_rad, sidelobe_db : float
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
+    rows = np.asarray(ping_rows, int)
+    r = np.asarray(range_m, float)
+    az = np.asarray(azimuth_rad, float)
+    a = np.asarray(amplitude, float)
+    keep = np.ones(rows.size, bool)
+    if sidelobe_db <= 0:
+        return keep
+    ratio = 10.0 ** (sidelobe_db / 20.0)
+    for p in np.unique(rows):
+        k = np.flatnonzero(rows == p)
+        k = k[np.argsort(-a[k], kind="stable")]
+        for i, j in enumerate(k[1:], 1):
+            s = k[:i]
+            near = np.abs(r[s] - r[j]) <= 2.5 * range_resolution_m
+            same_cell = near & (np.abs(az[s] - az[j]) <= 1.5 * azimuth_resolution_rad)
+            sidelobe = near & (a[s] > ratio * a[j])
+            if np.any(same_cell | sidelobe):
+                keep[j] = False
+    return keep
+
+
+def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
+    """Track the detections of a dataset across pings.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        A dataset (simulated or recorded) with or without /Processing/Detections.
+    settings : ProcessingSettings, dict or path, optional
+        Its ``track`` section sets the tracker (:class:`processing.settings.TrackSettings`).
+
+    Returns
+    -------
+    xarray.DataTree
+        A copy with /Processing/Tracks (see the module docstring).
+
+    Raises
+    ------
+    processing.dataset.DatasetError
+        The dataset has no interferometric elevation (tracking needs 3-D positions).
+    """
+    from .calibration import calibration_of
+    from .target_strength import beam_pattern_of, target_strength_db
+    from .tracking import measurement_covariance, track_detections
+    st = resolve_settings(tree, settings)
+    ts_ = st.track
+    if PROCESSING_GROUP not in tree.children or "Detections" not in tree[PROCESSING_GROUP].children:
+        tree = detect(tree, st)
+    if not bool(tree[PROCESSING_GROUP].ds.attrs.get("interferometric", 1)):
+        raise DatasetError("tracking needs 3-D positions: this dataset's mode has no "
+                           "interferometric elevation (normal or combined mode)")
+    det = detections_of(tree)
+    da = tree[DETECTIONS_GROUP].ds.attrs
+    if "range_resolution_m" not in da:
+        da = tree[PROCESSING_GROUP].ds.attrs
+    rows = det["ping"].values.astype(int)
+    pidx = det["ping_index"].values.astype(int)
+    world = np.stack([det[f"world_{a}_m"].values for a in "xyz"], -1)
+    sonar_xyz = np.stack([det[f"{a}_m"].values for a in "xyz"], -1)
+    usable = ~det["elevation_clipped"].values if "elevation_clipped" in det else np.ones(len(rows), bool)
+    env = tree["Environment"].ds
+    c = float(env["sound_speed_indicative"].values)
+    f0 = float(tree["Sonar"].ds["transmit_frequency_center"].values)
+    baseline = _baseline_m(tree)
+    if baseline is None:
+        raise DatasetError(f"tracking needs subarrays A and B in /{ELEMENT_GROUP}/element_subarray")
+    cov = measurement_covariance(det["range_m"].values, det["azimuth_rad"].values,
+                                 det["elevation_rad"].values, det["snr_db"].values,
+                                 range_resolution_m=float(da["range_resolution_m"]),
+                                 azimuth_resolution_rad=float(da["azimuth_resolution_rad"]),
+                                 wavelength_m=c / f0, baseline_m=baseline,
+                                 rotation=_rotation_per_row(tree, rows))
+    # compensated TS of every detection (NaN without a calibration: recorded data may lack one)
+    try:
+        cal = calibration_of(tree)
+        ts_u, ts_c, _ = target_strength_db(det["amplitude"].values, det["range_m"].values, sonar_xyz,
+                                           gain_counts_m=cal.gain_counts_m,
+                                           absorption_db_per_m=cal.absorption_db_per_m,
+                                           pattern=beam_pattern_of(tree))
+    except DatasetError:
+        ts_u = ts_c = np.full(len(rows), np.nan)
+    times = _ping_times_s(tree)
+    single = single_targets(rows, det["range_m"].values, det["azimuth_rad"].values,
+                            det["amplitude"].values, range_resolution_m=float(da["range_resolution_m"]),
+                            azimuth_resolution_rad=float(da["azimuth_resolution_rad"]),
+                            sidelobe_db=ts_.sidelobe_db)
+    keep = np.flatnonzero(usable & single & np.all(np.isfinite(world), axis=1))
+    tracks = track_detections(rows[keep], times, world[keep], cov[keep], method=ts_.method,
+                              gate_probability=ts_.gate_probability, accel_sd_m_s2=ts_.accel_sd_m_s2,
+                              initial_speed_sd_m_s=ts_.initial_speed_sd_m_s, alpha=ts_.alpha,
+                              beta=ts_.beta, confirm_hits=ts_.confirm_hits,
+                              confirm_window=ts_.confirm_window, max_misses=ts_.max_misses)
+    volume = volume_of(tree, st)
+    ping_index_of_row = _ping_index_of_rows(tree)
+    # flat track points
+    p_track, p_row, p_det, p_pos, p_in = [], [], [], [], []
+    for tr in tracks:
+        n = len(tr.pings)
+        sm = np.array(tr.smoothed)[:, :3]
+        prow = np.array(tr.pings, int)
+        inside = volume.contains(_to_sonar(tree, prow, sm))
+        dets = np.array([keep[j] if j >= 0 else -1 for j in tr.detection], int)
+        p_track.append(np.full(n, tr.track_id))
+        p_row.append(prow)
+        p_det.append(dets)
+        p_pos.append(sm)
+        p_in.append(inside)
+    cat = (lambda parts, shape, dt: np.concatenate(parts) if parts else np.zeros(shape, dt))
+    p_track = cat(p_track, 0, int)
+    p_row = cat(p_row, 0, int)
+    p_det = cat(p_det, 0, int)
+    p_pos = cat(p_pos, (0, 3), float)
+    p_in = cat(p_in, 0, bool)
+    has = p_det >= 0
+    p_ts_u = np.where(has, ts_u[np.maximum(p_det, 0)], np.nan)
+    p_ts_c = np.where(has, ts_c[np.maximum(p_det, 0)], np.nan)
+    n_tr = len(tracks)
+    vel = np.array([np.mean(np.array(tr.smoothed)[:, 3:], axis=0) for tr in tracks]).reshape(n_tr, 3)
+    first = np.array([tr.pings[0] for tr in tracks], int)
+    last = np.array([tr.pings[-1] for tr in tracks], int)
+    n_det = np.array([sum(j >= 0 for j in tr.detection) for tr in tracks], int)
+    mean_ts = np.full(n_tr, np.nan)
+    passed = np.zeros(n_tr, bool)
+    for i in range(n_tr):
+        k = p_track == i
+        good = p_ts_c[k][np.isfinite(p_ts_c[k])]
+        if good.size:
+            mean_ts[i] = 10 * np.log10(np.mean(10 ** (good / 10)))
+        passed[i] = p_in[k].any()
+    duration = float(times[-1] - times[0]) + (float(np.median(np.diff(times))) if len(times) > 1 else 0.0)
+    interval = float(np.median(np.diff(times))) if len(times) > 1 else 0.0
+    fish_seconds = float(p_in.sum()) * interval
+    density = fish_seconds / duration / volume.volume_m3 if duration > 0 and volume.volume_m3 > 0 else np.nan
+    ds = xr.Dataset(
+        {"track_first_ping": ("track", ping_index_of_row[first] if n_tr else first),
+         "track_last_ping": ("track", ping_index_of_row[last] if n_tr else last),
+         "track_detections": ("track", n_det),
+         "track_velocity_world_x": ("track", vel[:, 0]), "track_velocity_world_y": ("track", vel[:, 1]),
+         "track_velocity_world_z": ("track", vel[:, 2]),
+         "track_speed": ("track", np.linalg.norm(vel, axis=1)),
+         "track_ts": ("track", mean_ts),
+         "track_in_volume": ("track", passed.astype(np.int8)),
+         "point_track": ("track_point", p_track),
+         "point_ping_index": ("track_point", ping_index_of_row[p_row] if p_row.size else p_row),
+         "point_detection": ("track_point", p_det),
+         "point_world_x": ("track_point", p_pos[:, 0]), "point_world_y": ("track_point", p_pos[:, 1]),
+         "point_world_z": ("track_point", p_pos[:, 2]),
+         "point_in_volume": ("track_point", p_in.astype(np.int8)),
+         "point_ts_uncomp": ("track_point", p_ts_u), "point_ts_comp": ("track_point", p_ts_c)},
+        coords={"track": np.arange(n_tr)},
+        attrs={"method": ts_.method, "track_count": int(passed.sum()),
+               "track_density_per_m3": density, "counting_volume_m3": volume.volume_m3,
+               "duration_s": duration})
+    units = {"track_velocity_world_x": "m/s", "track_velocity_world_y": "m/s",
+             "track_velocity_world_z": "m/s", "track_speed": "m/s", "track_ts": "dB re 1 m^2",
+             "point_world_x": "m", "point_world_y": "m", "point_world_z": "m",
+             "point_ts_uncomp": "dB re 1 m^2", "point_ts_comp": "dB re 1 m^2"}
+    for k, u in units.items():
+        ds[k].attrs["units"] = u
+    ds["track_ts"].attrs["nan_means"] = "no detection of the track within the compensable beam"
+    ds["point_ts_comp"].attrs["nan_means"] = ("a coasted point (no detection), or the two-way "
+                                              "pattern at the located angle below −20 dB")
+    ds["point_ts_uncomp"].attrs["nan_means"] = "a coasted point (no detection)"
+    ds["point_detection"].attrs["long_name"] = "row of /Processing/Detections, −1 where the track coasted"
+    from .track_scoring import score_tracks
+    truth = _truth_table(tree)
+    if truth is not None:
+        ds = score_tracks(ds, truth, volume=volume, to_sonar=lambda r, w: _to_sonar(tree, r, w),
+                          row_of_ping_index={int(p): i for i, p in enumerate(ping_index_of_row)},
+                          max_distance_m=ts_.score_distance_m)
+    out = tree.copy()
+    out[TRACKS_GROUP] = xr.DataTree(ds)
+    return out
+
+
+def _ping_index_of_rows(tree):
+    eg = tree[ELEMENT_GROUP].ds
+    if "ping_index" in eg.variables:
+        return np.asarray(eg["ping_index"].values, int)
+    return np.arange(eg.sizes["ping_time"])
+
+
+def _truth_table(tree):
+    from .dataset import TRUTH_GROUP
+    try:
+        gt = tree[TRUTH_GROUP].ds
+    except KeyError:
+        return None
+    if "target_id" not in gt:
+        return None
+    out = {k: gt[k].values for k in ("target_ping_index", "target_id", "target_world_x", "target_world_y",
+                                      "target_world_z", "target_ts", "target_in_counting_volume")
+           if k in gt}
+    for a in "xyz":
+        k = f"target_velocity_world_{a}"
+        out[k] = gt[k].values if k in gt else np.zeros(len(out["target_id"]))
+    return out
+
+
+def tracks_of(tree: xr.DataTree) -> xr.Dataset:
+    """The /Processing/Tracks dataset (see :func:`track`).
+
+    Raises
+    ------
+    DatasetError
+        The dataset has no tracks (run :func:`track` first).
+    """
+    try:
+        return tree[TRACKS_GROUP].ds
+    except KeyError:
+        raise DatasetError("the dataset has no /Processing/Tracks: run processing.track "
+                           "(or `abacus track`) first") from None
