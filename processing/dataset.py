@@ -27,7 +27,7 @@ import xarray as xr
 
 from .atomic import staged
 
-__all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "TRUTH_GROUP",
+__all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "ping_indices", "TRUTH_GROUP",
            "write_tree", "write_dataset", "check_finite", "NAN_MEANS", "open_tree", "tree_pings", "source_of", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
            "read_record"]
 
@@ -214,6 +214,14 @@ def source_of(tree: xr.DataTree) -> str:
     """What to call a dataset in messages: the file it was read from, else its title."""
     src = getattr(tree, "encoding", {}).get("source")
     return str(Path(src).name if src else tree.attrs.get("title", "dataset"))
+
+
+def ping_indices(group: xr.Dataset) -> np.ndarray:
+    """The scene's ping index of every ping of an element group, shape (n_pings,): its
+    ``ping_index`` variable, else 0, 1, 2, ... (a recorded file numbers its pings in order)."""
+    if "ping_index" in group.variables:
+        return np.asarray(group["ping_index"].values, int)
+    return np.arange(group.sizes["ping_time"])
 
 
 def tree_pings(tree: xr.DataTree) -> int:
@@ -422,7 +430,6 @@ def read_record(tree: xr.DataTree, *, source: str = "") -> SonarRecord:
         mode = "normal"
     if samples.shape[0] == 0:
         raise DatasetError(f"{where}: /{eg} holds no pings")
-    ping = (ds["ping_index"].values.astype(int) if "ping_index" in ds.variables
-            else np.arange(samples.shape[0]))
+    ping = ping_indices(ds)
     return SonarRecord(samples, ping, 1.0 / interval, offset, replica, f0, bw, c, pos, sub,
                        tx.astype(float), txw, mode, where)

@@ -16,7 +16,8 @@ import xarray as xr
 
 from .atomic import staged
 from .config import ConfigError, dump_yaml, parse_yaml, validate_file
-from .dataset import ELEMENT_GROUP, DatasetError, complex_of, read_record, source_of, split_complex
+from .dataset import (ELEMENT_GROUP, DatasetError, complex_of, ping_indices, read_record, source_of,
+                      split_complex)
 from .chain import record_pings
 from .imaging import Images, form_images
 from .settings import ImageSettings, ProcessingSettings, load_settings
@@ -452,7 +453,7 @@ def count(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.DataT
     table = _columns(detections_of(tree))
     volume = volume_of(tree, st)
     eg = tree[ELEMENT_GROUP].ds
-    ping_index = eg["ping_index"].values if "ping_index" in eg.variables else np.arange(eg.sizes["ping_time"])
+    ping_index = ping_indices(eg)
     da = tree[DETECTIONS_GROUP].ds.attrs
     if "range_resolution_m" not in da:   # written by an earlier abacus: the images' attributes
         da = tree[PROCESSING_GROUP].ds.attrs

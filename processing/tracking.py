@@ -64,10 +64,15 @@ class Track:
         after each ping's update (or prediction, on a miss).
     x_pred, P_pred : list of ndarray
         The predictions those came from (for the smoother).
+    times : list of float
+        Time (s) of each of those pings.
     confirmed : bool
     hits : int
     misses : int
         Consecutive misses at the end.
+    smoothed : list of ndarray
+        Smoothed states (6,), one per ping, once the track is finished (RTS for the Kalman
+        filter, the filtered states for αβ).
     """
 
     track_id: int
@@ -81,6 +86,7 @@ class Track:
     confirmed: bool = False
     hits: int = 0
     misses: int = 0
+    smoothed: list = field(default_factory=list)
 
 
 def cv_matrices(dt_s: float, accel_sd_m_s2: float):
@@ -198,28 +204,25 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
     next_id = 0
     # every ping, those without detections too: a track misses there
     order = sorted(time_s) if isinstance(time_s, dict) else range(len(time_s))
-    prev_t = None
     for p in order:
         t = float(time_s[p])
         rows = np.flatnonzero((pings == p) & ok)
-        # 1. predict every live track to this ping
+        # 1. predict every live track to this ping: (x, P, dt) per track
+        pred = []
         for tr in live:
             dt = t - tr.times[-1]
             F, Q = cv_matrices(dt, accel_sd_m_s2)
-            xp = F @ tr.x[-1]
-            Pp = F @ tr.P[-1] @ F.T + Q
-            tr._xp, tr._Pp, tr._dt = xp, Pp, dt
+            pred.append((F @ tr.x[-1], F @ tr.P[-1] @ F.T + Q, dt))
         # 2. gate and assign
         cost = np.full((len(live), rows.size), np.inf)
-        for i, tr in enumerate(live):
+        for i, (xp, Pp, dt) in enumerate(pred):
             if rows.size == 0:
                 break
             if method == "kalman":
-                S = tr._Pp[:3, :3][None] + cov[rows]
+                S = Pp[:3, :3][None] + cov[rows]
             else:
-                spread = (initial_speed_sd_m_s * tr._dt) ** 2
-                S = 2 * cov[rows] + spread * np.eye(3)[None]
-            nu = pos[rows] - tr._xp[:3]
+                S = 2 * cov[rows] + (initial_speed_sd_m_s * dt) ** 2 * np.eye(3)[None]
+            nu = pos[rows] - xp[:3]
             Sinv = np.linalg.inv(S)
             d2 = np.einsum("ni,nij,nj->n", nu, Sinv, nu)
             _, logdet = np.linalg.slogdet(S)
@@ -228,34 +231,32 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
         assigned = dict(zip(a_tr.tolist(), a_det.tolist()))
         used = set(a_det.tolist())
         # 3. update
-        for i, tr in enumerate(live):
+        for i, (tr, (xp, Pp, dt)) in enumerate(zip(live, pred)):
             tr.pings.append(int(p))
             tr.times.append(t)
-            tr.x_pred.append(tr._xp)
-            tr.P_pred.append(tr._Pp)
+            tr.x_pred.append(xp)
+            tr.P_pred.append(Pp)
             if i in assigned:
                 j = rows[assigned[i]]
-                z = pos[j]
+                nu = pos[j] - xp[:3]
                 if method == "kalman":
-                    S = tr._Pp[:3, :3] + cov[j]
-                    K = tr._Pp @ H.T @ np.linalg.inv(S)
-                    x = tr._xp + K @ (z - tr._xp[:3])
+                    K = Pp @ H.T @ np.linalg.inv(Pp[:3, :3] + cov[j])
+                    x = xp + K @ nu
                     IKH = np.eye(6) - K @ H
-                    P = IKH @ tr._Pp @ IKH.T + K @ cov[j] @ K.T     # Joseph form: stays symmetric
+                    P = IKH @ Pp @ IKH.T + K @ cov[j] @ K.T     # Joseph form: stays symmetric
                 else:
-                    nu = z - tr._xp[:3]
-                    x = tr._xp.copy()
+                    x = xp.copy()
                     x[:3] += alpha * nu
-                    x[3:] += beta * nu / max(tr._dt, 1e-9)
-                    P = tr._Pp
+                    x[3:] += beta * nu / max(dt, 1e-9)
+                    P = Pp
                 tr.x.append(x)
                 tr.P.append(P)
                 tr.detection.append(int(j))
                 tr.hits += 1
                 tr.misses = 0
             else:
-                tr.x.append(tr._xp)
-                tr.P.append(tr._Pp)
+                tr.x.append(xp)
+                tr.P.append(Pp)
                 tr.detection.append(-1)
                 tr.misses += 1
             if not tr.confirmed and tr.hits >= confirm_hits and len(tr.pings) <= confirm_window:
@@ -282,8 +283,6 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
             tr.confirmed = confirm_hits <= 1
             next_id += 1
             live.append(tr)
-        prev_t = t
-    del prev_t
     done.extend(tr for tr in live if tr.confirmed)
     for tr in done:
         _trim(tr)

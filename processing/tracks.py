@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from .dataset import ELEMENT_GROUP, DatasetError
+from .dataset import ELEMENT_GROUP, DatasetError, ping_indices
 from .products import (DETECTIONS_GROUP, PROCESSING_GROUP, detect, detections_of, pose_of,
                        resolve_settings, volume_of)
 
@@ -47,22 +47,27 @@ def _baseline_m(tree):
     return float(np.linalg.norm(xyz[sub == "B"].mean(0) - xyz[sub == "A"].mean(0)))
 
 
-def _rotation_per_row(tree, ping_rows):
-    pose = pose_of(tree)
-    if pose is None:
-        return None
-    rot = np.asarray(pose[1], float)
-    return rot[ping_rows] if rot.ndim == 3 else rot
+class _Poses:
+    """The sonar's pose at each ping of a record, read once (None: sonar frame = world frame)."""
 
+    def __init__(self, tree):
+        pose = pose_of(tree)
+        self.position, self.rotation = ((None, None) if pose is None
+                                        else (np.asarray(a, float) for a in pose))
 
-def _to_sonar(tree, ping_rows, world_m):
-    pose = pose_of(tree)
-    if pose is None:
-        return world_m
-    pos, rot = (np.asarray(a, float) for a in pose)
-    if rot.ndim == 3:
-        return np.einsum("nji,nj->ni", rot[ping_rows], world_m - pos[ping_rows])
-    return (world_m - pos) @ rot
+    def rotation_of(self, ping_rows):
+        """Sonar axes in world coordinates, (n, 3, 3) or (3, 3); None without a pose."""
+        if self.rotation is None or self.rotation.ndim == 2:
+            return self.rotation
+        return self.rotation[ping_rows]
+
+    def to_sonar(self, ping_rows, world_m):
+        """World positions (n, 3) of the given ping rows (n,) in their ping's sonar frame."""
+        if self.rotation is None:
+            return world_m
+        if self.rotation.ndim == 3:
+            return np.einsum("nji,nj->ni", self.rotation[ping_rows], world_m - self.position[ping_rows])
+        return (world_m - self.position) @ self.rotation
 
 
 def single_targets(ping_rows, range_m, azimuth_rad, amplitude, *, range_resolution_m: float,
@@ -98,14 +103,13 @@ def single_targets(ping_rows, range_m, azimuth_rad, amplitude, *, range_resoluti
     ratio = 10.0 ** (sidelobe_db / 20.0)
     for p in np.unique(rows):
         k = np.flatnonzero(rows == p)
-        k = k[np.argsort(-a[k], kind="stable")]
-        for i, j in enumerate(k[1:], 1):
-            s = k[:i]
-            near = np.abs(r[s] - r[j]) <= 2.5 * range_resolution_m
-            same_cell = near & (np.abs(az[s] - az[j]) <= 1.5 * azimuth_resolution_rad)
-            sidelobe = near & (a[s] > ratio * a[j])
-            if np.any(same_cell | sidelobe):
-                keep[j] = False
+        # pairs (i stronger than j) of this ping: j goes if any stronger i is near it in range
+        # and either in its cell or far above it
+        stronger = a[k][:, None] > a[k][None, :]
+        near = np.abs(r[k][:, None] - r[k][None, :]) <= 2.5 * range_resolution_m
+        same_cell = np.abs(az[k][:, None] - az[k][None, :]) <= 1.5 * azimuth_resolution_rad
+        far_above = a[k][:, None] > ratio * a[k][None, :]
+        keep[k] = ~np.any(stronger & near & (same_cell | far_above), axis=0)
     return keep
 
 
@@ -152,6 +156,7 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     c = float(env["sound_speed_indicative"].values)
     f0 = float(tree["Sonar"].ds["transmit_frequency_center"].values)
     baseline = _baseline_m(tree)
+    poses = _Poses(tree)
     if baseline is None:
         raise DatasetError(f"tracking needs subarrays A and B in /{ELEMENT_GROUP}/element_subarray")
     cov = measurement_covariance(det["range_m"].values, det["azimuth_rad"].values,
@@ -159,7 +164,7 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
                                  range_resolution_m=float(da["range_resolution_m"]),
                                  azimuth_resolution_rad=float(da["azimuth_resolution_rad"]),
                                  wavelength_m=c / f0, baseline_m=baseline,
-                                 rotation=_rotation_per_row(tree, rows))
+                                 rotation=poses.rotation_of(rows))
     # compensated TS of every detection (NaN without a calibration: recorded data may lack one)
     try:
         cal = calibration_of(tree)
@@ -181,14 +186,14 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
                               beta=ts_.beta, confirm_hits=ts_.confirm_hits,
                               confirm_window=ts_.confirm_window, max_misses=ts_.max_misses)
     volume = volume_of(tree, st)
-    ping_index_of_row = _ping_index_of_rows(tree)
+    ping_index_of_row = ping_indices(tree[ELEMENT_GROUP].ds)
     # flat track points
     p_track, p_row, p_det, p_pos, p_in = [], [], [], [], []
     for tr in tracks:
         n = len(tr.pings)
         sm = np.array(tr.smoothed)[:, :3]
         prow = np.array(tr.pings, int)
-        inside = volume.contains(_to_sonar(tree, prow, sm))
+        inside = volume.contains(poses.to_sonar(prow, sm))
         dets = np.array([keep[j] if j >= 0 else -1 for j in tr.detection], int)
         p_track.append(np.full(n, tr.track_id))
         p_row.append(prow)
@@ -217,8 +222,8 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
         if good.size:
             mean_ts[i] = 10 * np.log10(np.mean(10 ** (good / 10)))
         passed[i] = p_in[k].any()
-    duration = float(times[-1] - times[0]) + (float(np.median(np.diff(times))) if len(times) > 1 else 0.0)
     interval = float(np.median(np.diff(times))) if len(times) > 1 else 0.0
+    duration = float(times[-1] - times[0]) + interval
     fish_seconds = float(p_in.sum()) * interval
     density = fish_seconds / duration / volume.volume_m3 if duration > 0 and volume.volume_m3 > 0 else np.nan
     ds = xr.Dataset(
@@ -255,19 +260,12 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     from .track_scoring import score_tracks
     truth = _truth_table(tree)
     if truth is not None:
-        ds = score_tracks(ds, truth, volume=volume, to_sonar=lambda r, w: _to_sonar(tree, r, w),
+        ds = score_tracks(ds, truth, volume=volume, to_sonar=poses.to_sonar,
                           row_of_ping_index={int(p): i for i, p in enumerate(ping_index_of_row)},
                           max_distance_m=ts_.score_distance_m)
     out = tree.copy()
     out[TRACKS_GROUP] = xr.DataTree(ds)
     return out
-
-
-def _ping_index_of_rows(tree):
-    eg = tree[ELEMENT_GROUP].ds
-    if "ping_index" in eg.variables:
-        return np.asarray(eg["ping_index"].values, int)
-    return np.arange(eg.sizes["ping_time"])
 
 
 def _truth_table(tree):

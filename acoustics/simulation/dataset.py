@@ -17,6 +17,13 @@ from acoustics.sonar.calibration import sonar_calibration
 __all__ = ["build_tree", "provenance_dataset", "versions", "rays_cast"]
 
 
+def _element_geometry(elements, prefix: str, dim: str) -> dict:
+    """``<prefix>_x/_y/_z/_width/_height/_rotation`` of an ElementArray along ``dim``."""
+    cols = {"x": (elements.center_m[:, 0], "m"), "y": (elements.center_m[:, 1], "m"),
+            "z": (elements.center_m[:, 2], "m"), "width": (elements.width_m, "m"),
+            "height": (elements.height_m, "m"), "rotation": (elements.rotation_rad, "rad")}
+    return {f"{prefix}_{k}": xr.DataArray(v, dims=dim, attrs={"units": u}) for k, (v, u) in cols.items()}
+
 def versions() -> dict:
     """Versions of everything that shapes the numbers."""
     import numba
@@ -121,12 +128,7 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.Da
                                                   attrs={"units": "arc_degree", "long_name": "transmit 3 dB beamwidth in elevation"}),
          **split_complex("replica", replica, ("replica_sample",),
                          {"long_name": "transmit pulse u(j/fs), complex baseband", "units": "1"}),
-         "tx_element_x": xr.DataArray(tx.center_m[:, 0], dims="tx_element", attrs={"units": "m"}),
-         "tx_element_y": xr.DataArray(tx.center_m[:, 1], dims="tx_element", attrs={"units": "m"}),
-         "tx_element_z": xr.DataArray(tx.center_m[:, 2], dims="tx_element", attrs={"units": "m"}),
-         "tx_element_width": xr.DataArray(tx.width_m, dims="tx_element", attrs={"units": "m"}),
-         "tx_element_height": xr.DataArray(tx.height_m, dims="tx_element", attrs={"units": "m"}),
-         "tx_element_rotation": xr.DataArray(tx.rotation_rad, dims="tx_element", attrs={"units": "rad"}),
+         **_element_geometry(tx, "tx_element", "tx_element"),
          "tx_element_weight": xr.DataArray(tx.weight, dims="tx_element"),
          "calibration_gain": xr.DataArray(cal_gain, attrs={
              "units": "counts m", "long_name": "G = k S: image peak of a target of backscatter "
@@ -145,12 +147,7 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.Da
     eg = xr.Dataset(
         {**split_complex("element", samples, ("ping_time", "rx_element", "range_sample"),
                          {"units": "ADC counts", "long_name": "complex baseband samples per receiver element"}),
-         "element_x": xr.DataArray(el.center_m[:, 0], dims="rx_element", attrs={"units": "m"}),
-         "element_y": xr.DataArray(el.center_m[:, 1], dims="rx_element", attrs={"units": "m"}),
-         "element_z": xr.DataArray(el.center_m[:, 2], dims="rx_element", attrs={"units": "m"}),
-         "element_width": xr.DataArray(el.width_m, dims="rx_element", attrs={"units": "m"}),
-         "element_height": xr.DataArray(el.height_m, dims="rx_element", attrs={"units": "m"}),
-         "element_rotation": xr.DataArray(el.rotation_rad, dims="rx_element", attrs={"units": "rad"}),
+         **_element_geometry(el, "element", "rx_element"),
          "element_subarray": xr.DataArray(rx.channel_subarray.astype(str), dims="rx_element"),
          "element_index_in_subarray": xr.DataArray(np.array([i for _, i in rx.channels]), dims="rx_element"),
          "sample_interval": xr.DataArray(1.0 / s.rate_hz, attrs={"units": "s"}),
