@@ -26,3 +26,12 @@ def test_readme_starts_with_exactly_two_commands():
 def test_ci_runs_the_readme_test_command_verbatim():
     ci = (ROOT / ".ci" / "run").read_text()
     assert _readme_commands()[1] in ci.splitlines()
+
+
+def test_the_first_command_writes_where_a_fresh_checkout_can():
+    """`abacus run -o X` refuses a missing parent folder (a typo must not write elsewhere), so
+    the README's run may name -o only under a folder a fresh checkout has."""
+    words = _readme_commands()[0].split("&&")[-1].split()
+    if "-o" in words:
+        out = ROOT / words[words.index("-o") + 1]
+        assert out.parent.is_dir() and not out.exists()
