@@ -429,5 +429,11 @@ def raytraced():
               "![its fan-beam image, ping 0](figures/pelagic_floor_rock_fan.png)")
 
 
+@section
+def tracking():
+    from tracking import tracking_section
+    return tracking_section()
+
+
 if __name__ == "__main__":
     REPORT.main()

@@ -152,9 +152,11 @@ class TrackSettings(ConfigModel):
     """Constant-velocity Kalman filter with RTS smoothing, or the thesis' αβ filter (§7)."""
     gate_probability: Real = Field(0.99, gt=0.5, lt=1)
     """Chi-square gate (3 degrees of freedom) on the innovation's Mahalanobis distance."""
-    accel_sd_m_s2: PositiveReal = Field(0.5, le=100)
-    """Process noise: white acceleration of this spectral density √q (m/s² per √(1/s))."""
-    initial_speed_sd_m_s: PositiveReal = Field(1.0, le=100)
+    accel_sd_m_s2: PositiveReal = Field(0.1, le=100)
+    """Process noise: white acceleration of this spectral density √q (m/s² per √(1/s)). 0.1 suits
+    schooling fish cruising at body lengths per second; a larger value follows sharper turns
+    but lets a track jump to a neighbour (docs/validation.md, "Tracking")."""
+    initial_speed_sd_m_s: PositiveReal = Field(0.5, le=100)
     """Velocity spread of a new track (m/s); the αβ gate's allowance for motion."""
     alpha: Real = Field(0.5, gt=0, le=1)
     """αβ position gain."""
@@ -168,6 +170,13 @@ class TrackSettings(ConfigModel):
     sidelobe_db: NonNegativeReal = Field(20.0, le=100)
     """Single targets: a detection within 2.5 range cells of one this much stronger (dB) is
     taken as its range or azimuth sidelobe (or ghost) and not tracked; 0 tracks everything."""
+    min_ts_db: Real = Field(-70.0, ge=-200, le=50)
+    """TS threshold of single targets (dB re 1 m²): a detection whose beam-compensated TS is
+    below it (a multipath echo via the floor, a far range sidelobe) is not tracked; one beyond
+    the compensable beam (TS NaN) is kept."""
+    interference_db: Real = Field(20.0, ge=0, le=100)
+    """Signal-to-interference ratio (dB) capping a detection's effective SNR in its position
+    covariance (processing.tracking.measurement_covariance)."""
     score_distance_m: PositiveReal = Field(0.3, le=10)
     """A track's position within this distance of a true fish matches it (scoring)."""
 

@@ -15,7 +15,7 @@ ALLOWED_FROM_PROCESSING = {
     "processing", "processing.config", "processing.settings", "processing.dataset",
     "processing.atomic", "processing.counting", "processing.noise", "processing.evaluate",
     "processing.results", "processing.report", "processing.plots", "processing.products",
-    "processing.resources", "processing.chain",
+    "processing.resources", "processing.chain", "processing.tracks", "processing.track_plots",
 }
 
 

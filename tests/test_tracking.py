@@ -103,16 +103,20 @@ def test_process_noise_is_the_white_acceleration_model():
 
 def test_measurement_covariance_follows_the_geometry():
     """At boresight the range error is along z, azimuth along x (r σ_θ), elevation along y
-    (r σ_φ); σ_φ = λ / (2π b √SNR)."""
-    C = measurement_covariance([20.0], [0.0], [0.0], [40.0], range_resolution_m=0.07,
-                               azimuth_resolution_rad=0.04, wavelength_m=0.00364, baseline_m=0.0241)[0]
-    snr = 1e4
-    assert np.sqrt(C[2, 2]) == pytest.approx(max(0.07 / np.sqrt(2 * snr), 0.07 / np.sqrt(12)))
-    assert np.sqrt(C[0, 0]) == pytest.approx(20 * max(0.04 / np.sqrt(2 * snr), 0.04 / np.sqrt(12)))
-    assert np.sqrt(C[1, 1]) == pytest.approx(20 * 0.00364 / (2 * np.pi * 0.0241) / np.sqrt(snr))
-    assert np.all(np.isfinite(measurement_covariance([20.0], [0.0], [np.pi / 2], [np.nan],
-                                                     range_resolution_m=0.07, azimuth_resolution_rad=0.04,
-                                                     wavelength_m=0.00364, baseline_m=0.0241)))
+    (r σ_φ); σ = δ/√(2 SINR), σ_φ = λ / (2π b √SINR), SINR = 1/(1/SNR + 1/SIR)."""
+    kw = dict(range_resolution_m=0.07, azimuth_resolution_rad=0.04, wavelength_m=0.00364,
+              baseline_m=0.0241)
+    for snr_db, sir_db in ((20.0, 100.0), (40.0, 20.0)):
+        C = measurement_covariance([20.0], [0.0], [0.0], [snr_db], interference_db=sir_db, **kw)[0]
+        sinr = 1 / (10 ** (-snr_db / 10) + 10 ** (-sir_db / 10))
+        assert np.sqrt(C[2, 2]) == pytest.approx(0.07 / np.sqrt(2 * sinr))
+        assert np.sqrt(C[0, 0]) == pytest.approx(20 * 0.04 / np.sqrt(2 * sinr))
+        assert np.sqrt(C[1, 1]) == pytest.approx(20 * 0.00364 / (2 * np.pi * 0.0241) / np.sqrt(sinr))
+    # a strong echo is limited by the interference, not the noise: 60 dB SNR reads as ≈ 20 dB
+    strong = measurement_covariance([20.0], [0.0], [0.0], [60.0], interference_db=20.0, **kw)[0]
+    weak = measurement_covariance([20.0], [0.0], [0.0], [20.0], interference_db=100.0, **kw)[0]
+    np.testing.assert_allclose(strong, weak, rtol=0.02)
+    assert np.all(np.isfinite(measurement_covariance([20.0], [0.0], [np.pi / 2], [np.nan], **kw)))
 
 
 def test_sidelobes_of_a_strong_echo_are_not_single_targets():
@@ -165,3 +169,66 @@ def test_one_fish_passing_is_one_track_with_its_speed_and_ts():
     assert abs(ds.attrs["speed_error_mean"]) < 0.02
     assert abs(ds.attrs["ts_error_mean"]) < 1.0
     assert float(ds["track_speed"].values[0]) == pytest.approx(0.5, abs=0.02)
+
+
+def test_abacus_track_writes_tracks_csv_and_plots_and_refuses_a_bad_setting(tmp_path):
+    """The command a user runs: one fish passing gives one counted track in the JSON, a CSV row
+    per track with the documented columns, two figures; a bad tracking setting is one line."""
+    import csv
+    import json
+
+    from .test_cli import abacus
+    r = abacus("simulate", "fish_passing", "-o", "fp.nc", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    r = abacus("track", "fp.nc", "--json", "--csv", "t.csv", "--plots", "figs", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert out["summary"]["track_count"] == 1 and out["summary"]["true_passages"] == 1
+    counted = [t for t in out["tracks"] if t["in_counting_volume"]]
+    assert len(counted) == 1 and abs(counted[0]["speed_m_s"] - 0.5) < 0.02
+    assert abs(counted[0]["heading_deg"] % 360) < 3 or abs(counted[0]["heading_deg"] - 360) < 3  # +x
+    rows = list(csv.DictReader(open(tmp_path / "t.csv")))
+    assert len(rows) == len(out["tracks"]) and {"ts_mean_db", "speed_m_s", "num_targets"} <= set(rows[0])
+    assert sorted(p.name for p in (tmp_path / "figs").iterdir()) == ["track_ts.png", "tracks.png"]
+    (tmp_path / "bad.yaml").write_text("track: {gate_probability: 1.5}\n")
+    r = abacus("track", "fp.nc", "--settings", "bad.yaml", cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "gate_probability" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+LOUD = """name: loud
+sonar:
+  pose: {position_m: [0.0, 0.0, 1.0], boresight: [0.0, 0.0, 1.0], receiver_axis: [0.0, 1.0, 0.0]}
+  levels: {source_level_db: 210.0}
+noise: {enabled: true, model: sea}
+targets:
+  points:
+    - {range_m: 18.0, azimuth_deg: -2.5, elevation_deg: 0.0, backscatter: {model: fixed, ts_db: -25}}
+pings: {count: 3}
+processing:
+  image: {range_m: [13.0, 26.0]}
+  detect: {method: rayleigh, pfa_image: 1.0e-6, noise: {source: region, range_m: [13.0, 15.5], estimator: ml}}
+"""
+
+
+def test_far_range_sidelobes_of_a_strong_echo_are_below_the_ts_threshold():
+    """An echo ~100 dB above the noise (TS −25 dB at 18 m, physical levels) is detected again in
+    the far range sidelobes of the Hamming range window (≈ −80 dB, metres away, at its azimuth).
+    Their compensated TS is ≈ 80 dB below the target's, far below the −70 dB single-target
+    threshold, so they are not tracked; the target itself reads −25 ± 0.5 dB."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tree = processing.detect(acoustics.simulate(_quiet(LOUD)))
+    d = processing.detections_of(tree)
+    cal = calibration_of(tree)
+    pos = np.stack([d[k].values for k in ("x_m", "y_m", "z_m")], -1)
+    _, ts_c, _ = target_strength_db(d["amplitude"].values, d["range_m"].values, pos,
+                                    gain_counts_m=cal.gain_counts_m,
+                                    absorption_db_per_m=cal.absorption_db_per_m,
+                                    pattern=beam_pattern_of(tree))
+    far = np.abs(d["range_m"].values - 18.0) > 1.0
+    assert far.any(), "no far range sidelobe detected: the premise of the threshold is gone"
+    assert np.all(ts_c[far][np.isfinite(ts_c[far])] < -70.0)
+    assert np.nanmax(ts_c) == pytest.approx(-25.0, abs=0.5)
+    ds = tracks_of(track(tree))
+    assert ds.sizes["track"] == 1 and ds.attrs["track_count"] == 1
