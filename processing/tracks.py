@@ -25,7 +25,7 @@ from .dataset import ELEMENT_GROUP, DatasetError, ping_indices
 from .products import (DETECTIONS_GROUP, PROCESSING_GROUP, detect, detections_of, pose_of,
                        resolve_settings, volume_of)
 
-__all__ = ["TRACKS_GROUP", "track", "tracks_of", "single_targets", "track_summary", "format_tracks",
+__all__ = ["TRACKS_GROUP", "track", "tracks_of", "track_summary", "format_tracks",
            "write_tracks_csv"]
 
 TRACKS_GROUP = "Processing/Tracks"
@@ -71,52 +71,6 @@ class _Poses:
         return (world_m - self.position) @ self.rotation
 
 
-def single_targets(ping_rows, range_m, azimuth_rad, amplitude, *, range_resolution_m: float,
-                   azimuth_resolution_rad: float, sidelobe_db: float):
-    """Which detections are single targets rather than another's sidelobe or a second peak of
-    the same echo.
-
-    A strong echo is detected several times in its ping: at its own cell, in its range sidelobes
-    (±1–2 cells, 40–50 dB down) and at the same range in azimuth sidelobes and grating-lobe
-    ghosts (20–35 dB down for ABACUS). A detection is kept unless a stronger one of the same ping
-    lies within 2.5 range cells and more than ``sidelobe_db`` stronger, or in the same resolution
-    cell (within one range resolution and 1.5 azimuth cells). Two fish a range cell or more apart
-    are both kept: in a school they are often unresolved in azimuth (2.4° is 0.75 m at 18 m) but
-    resolved in range (6.7 cm). A weaker fish at the same range as a much stronger one is lost
-    with the sidelobes: the price of not tracking ghosts.
-
-    Parameters
-    ----------
-    ping_rows : array_like of int, shape (n,)
-    range_m, azimuth_rad, amplitude : array_like, shape (n,)
-        Range (m), azimuth (rad), image peak (counts).
-    range_resolution_m, azimuth_resolution_rad, sidelobe_db : float
-
-    Returns
-    -------
-    ndarray of bool, shape (n,)
-    """
-    rows = np.asarray(ping_rows, int)
-    r = np.asarray(range_m, float)
-    az = np.asarray(azimuth_rad, float)
-    a = np.asarray(amplitude, float)
-    keep = np.ones(rows.size, bool)
-    if sidelobe_db <= 0:
-        return keep
-    ratio = 10.0 ** (sidelobe_db / 20.0)
-    for p in np.unique(rows):
-        k = np.flatnonzero(rows == p)
-        # pairs (i stronger than j) of this ping: j goes if any stronger i is near it in range
-        # and either in its cell or far above it
-        stronger = a[k][:, None] > a[k][None, :]
-        near = np.abs(r[k][:, None] - r[k][None, :]) <= 2.5 * range_resolution_m
-        same_cell = ((np.abs(az[k][:, None] - az[k][None, :]) <= 1.5 * azimuth_resolution_rad)
-                     & (np.abs(r[k][:, None] - r[k][None, :]) <= range_resolution_m))
-        far_above = a[k][:, None] > ratio * a[k][None, :]
-        keep[k] = ~np.any(stronger & near & (same_cell | far_above), axis=0)
-    return keep
-
-
 def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     """Track the detections of a dataset across pings.
 
@@ -137,8 +91,7 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     processing.dataset.DatasetError
         The dataset has no interferometric elevation (tracking needs 3-D positions).
     """
-    from .calibration import calibration_of
-    from .target_strength import beam_pattern_of, target_strength_db
+    from .single_targets import single_target_table
     from .tracking import measurement_covariance, track_detections
     st = resolve_settings(tree, settings)
     ts_ = st.track
@@ -154,7 +107,6 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     rows = det["ping"].values.astype(int)
     pidx = det["ping_index"].values.astype(int)
     world = np.stack([det[f"world_{a}_m"].values for a in "xyz"], -1)
-    sonar_xyz = np.stack([det[f"{a}_m"].values for a in "xyz"], -1)
     usable = ~det["elevation_clipped"].values if "elevation_clipped" in det else np.ones(len(rows), bool)
     env = tree["Environment"].ds
     c = float(env["sound_speed_indicative"].values)
@@ -170,24 +122,11 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
                                  wavelength_m=c / f0, baseline_m=baseline,
                                  interference_db=ts_.interference_db,
                                  rotation=poses.rotation_of(rows))
-    # compensated TS of every detection (NaN without a calibration: recorded data may lack one)
-    try:
-        cal = calibration_of(tree)
-        ts_u, ts_c, _ = target_strength_db(det["amplitude"].values, det["range_m"].values, sonar_xyz,
-                                           gain_counts_m=cal.gain_counts_m,
-                                           absorption_db_per_m=cal.absorption_db_per_m,
-                                           pattern=beam_pattern_of(tree))
-    except DatasetError:
-        ts_u = ts_c = np.full(len(rows), np.nan)
+    st_table = single_target_table(tree, st)
+    ts_u, ts_c = st_table["ts_uncomp_db"].values, st_table["ts_comp_db"].values
     times = _ping_times_s(tree)
-    single = single_targets(rows, det["range_m"].values, det["azimuth_rad"].values,
-                            det["amplitude"].values, range_resolution_m=float(da["range_resolution_m"]),
-                            azimuth_resolution_rad=float(da["azimuth_resolution_rad"]),
-                            sidelobe_db=ts_.sidelobe_db)
-    # the TS threshold of single-target detection (as Echoview's): a compensated TS below it is a
-    # multipath echo or a sidelobe, not a fish; an echo beyond the compensable beam (NaN) stays
-    plausible = ~(ts_c < ts_.min_ts_db)
-    keep = np.flatnonzero(usable & single & plausible & np.all(np.isfinite(world), axis=1))
+    single = st_table["single_target"].values.astype(bool)
+    keep = np.flatnonzero(usable & single & np.all(np.isfinite(world), axis=1))
     tracks = track_detections(rows[keep], times, world[keep], cov[keep], method=ts_.method,
                               gate_probability=ts_.gate_probability, accel_sd_m_s2=ts_.accel_sd_m_s2,
                               initial_speed_sd_m_s=ts_.initial_speed_sd_m_s, alpha=ts_.alpha,

@@ -62,3 +62,18 @@ def test_scenes_folder_is_the_builtin_scenes():
     from acoustics.scene.builtin import builtin_scenes, scenes_dir
     assert scenes_dir() == (ROOT / "scenes").resolve()
     assert {p.stem for p in (ROOT / "scenes").glob("*.yaml")} == set(builtin_scenes())
+
+
+def test_an_interrupt_inside_a_compiled_kernel_is_still_an_interrupt(tmp_path):
+    """SIGINT landing inside a numba kernel surfaces as ``SystemError: ... returned a result with
+    an exception set`` caused by the KeyboardInterrupt: exit 130 'interrupted', not an internal
+    error (seen once in the reliability probes)."""
+    pre = ("import acoustics.cli.beams as b\n"
+           "def boom(args):\n"
+           "    try:\n"
+           "        raise KeyboardInterrupt\n"
+           "    except KeyboardInterrupt as e:\n"
+           "        raise SystemError('CPUDispatcher returned a result with an exception set') from e\n"
+           "b.command = boom")
+    r = abacus("beams", "--json", cwd=tmp_path, pre=pre)
+    assert r.returncode == 130 and r.stderr.strip() == "interrupted"

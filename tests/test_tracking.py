@@ -13,7 +13,8 @@ from acoustics.scene import SceneWarning, scene_from_text
 from processing.calibration import calibration_of
 from processing.target_strength import beam_pattern_of, target_strength_db
 from processing.tracking import cv_matrices, measurement_covariance, track_detections
-from processing.tracks import single_targets, track, tracks_of
+from processing.single_targets import single_targets
+from processing.tracks import track, tracks_of
 
 
 def _quiet(text):

@@ -18,7 +18,7 @@ from pathlib import Path
 __all__ = ["main", "build_parser", "COMMANDS"]
 
 #: sub-commands in the order ``abacus --help`` lists them
-COMMANDS = ("run", "scene", "beams", "simulate", "image", "count", "track", "experiment", "view")
+COMMANDS = ("run", "scene", "beams", "simulate", "image", "count", "track", "sv", "experiment", "view")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
@@ -126,6 +126,19 @@ def _install_signal_handlers():
         signal.signal(signal.SIGTERM, handler)
 
 
+def _signal_cause(exc):
+    """(exit status, word) when ``exc`` was caused by an interrupt or termination, else None."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, KeyboardInterrupt):
+            return EXIT_INTERRUPTED, "interrupted"
+        if isinstance(exc, _Terminated):
+            return EXIT_TERMINATED, "terminated"
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
 def main(argv=None) -> int:
     """Run one ``abacus`` command; every error a user can cause ends as one line on stderr and
     a documented exit status, never a traceback."""
@@ -172,6 +185,11 @@ def main(argv=None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except Exception as exc:  # a bug of ours: one line here, the traceback in a log
+        # a signal landing inside a compiled (numba) kernel surfaces as a SystemError whose
+        # cause is the KeyboardInterrupt / _Terminated our handlers raised: still a signal
+        cause = _signal_cause(exc)
+        if cause is not None:
+            _exit_now(*cause)
         where = _log_traceback(exc)
         print(f"error: internal error ({exc.__class__.__name__}: {str(exc).splitlines()[0][:200] if str(exc) else ''}); "
               f"the traceback is in {where} — please report it", file=sys.stderr)

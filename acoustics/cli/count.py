@@ -16,6 +16,8 @@ def add_parser(sub):
     c.add_argument("--json", action="store_true", help="print one JSON object: per-ping counts and summary")
     c.add_argument("--plots", metavar="DIR", help="detections over fan-beam images, counts vs ping")
     c.add_argument("--csv", metavar="FILE", help="write the detections table as CSV")
+    c.add_argument("--targets-csv", metavar="FILE",
+                   help="write the single targets with TS_comp/TS_uncomp, angles and positions as CSV")
     add_output_options(c)
     c.set_defaults(func=command)
 
@@ -25,6 +27,8 @@ def command(args) -> int:
     from processing.dataset import open_tree, write_tree
     out = check_output(args.output, overwrite=args.overwrite) if args.output else None
     csv = check_output(args.csv, overwrite=args.overwrite, option="--csv") if args.csv else None
+    tcsv = (check_output(args.targets_csv, overwrite=args.overwrite, option="--targets-csv")
+            if args.targets_csv else None)
     plots = check_output(args.plots, overwrite=args.overwrite, option="--plots", folder=True) if args.plots else None
     tree = processing.count(open_tree(args.input, max_memory_gb=args.max_memory, work_factor=3.0),
                             args.settings)
@@ -33,6 +37,9 @@ def command(args) -> int:
         write_tree(tree, out)
     if csv is not None:
         processing.write_csv(tree, csv)
+    if tcsv is not None:
+        from processing.single_targets import write_single_targets_csv
+        write_single_targets_csv(tree, tcsv, args.settings)
     if plots is not None:
         from processing.atomic import staged
         from processing.plots import count_figures
@@ -43,7 +50,8 @@ def command(args) -> int:
         print(json.dumps(result))
     else:
         print(processing.format_counts(result))
-        for what, where in (("dataset", args.output), ("detections CSV", args.csv), ("plots", args.plots)):
+        for what, where in (("dataset", args.output), ("detections CSV", args.csv),
+                            ("single targets CSV", args.targets_csv), ("plots", args.plots)):
             if where:
                 print(f"wrote {what}: {where}")
     return 0
