@@ -15,6 +15,8 @@ import warnings
 import numpy as np
 from _report import ROOT
 
+from processing.dataset import TRUTH_GROUP
+
 import acoustics
 import processing
 from acoustics import SceneWarning, load_scene
@@ -35,7 +37,7 @@ def _run(scene):
 
 
 def _truth(tree):
-    gt = tree["Simulation/Ground_truth"].ds
+    gt = tree[TRUTH_GROUP].ds
     return {k: gt[k].values for k in gt.data_vars}
 
 

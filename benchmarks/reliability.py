@@ -94,6 +94,8 @@ def _make_dataset(kind: str, path: Path):
     if True:
         import numpy as np
         import xarray as xr
+
+        from processing.dataset import ELEMENT_GROUP
         good = CACHE / "good.nc"
         tree = xr.open_datatree(good).load()
         if kind == "truncated":
@@ -108,49 +110,49 @@ def _make_dataset(kind: str, path: Path):
         if kind == "hdf5_garbage":
             path.write_bytes(b"\x89HDF\r\n\x1a\n" + os.urandom(4096))
             return
-        eg = "Simulation/Element_group1"
+        eg = ELEMENT_GROUP
         if kind == "no_sonar":
             tree = xr.DataTree.from_dict({k: v.ds for k, v in tree.subtree_with_keys if k != "Sonar"}
                                          if hasattr(tree, "subtree_with_keys") else
                                          {n.path: n.ds for n in tree.subtree if n.path != "/Sonar"})
         elif kind == "no_samples":
-            ds = tree[eg].ds.drop_vars(["element_r", "element_i"])
+            ds = tree[eg].to_dataset(inherit=False).drop_vars(["backscatter_r", "backscatter_i"])
             tree[eg] = xr.DataTree(ds)
         elif kind == "no_element_group":
             tree = xr.DataTree.from_dict({n.path: n.ds for n in tree.subtree
-                                          if not n.path.startswith("/Simulation/Element")})
+                                          if not n.path.startswith(f"/{eg}")})
         elif kind == "nan_samples":
-            ds = tree[eg].ds.copy(deep=True)
-            ds["element_r"].values[0, 0, 5] = np.nan
+            ds = tree[eg].to_dataset(inherit=False).copy(deep=True)
+            ds["backscatter_r"].values[0, 0, 5, 0] = np.nan
             tree[eg] = xr.DataTree(ds)
         elif kind == "no_imaginary_part":
-            ds = tree[eg].ds.drop_vars("element_i")
+            ds = tree[eg].to_dataset(inherit=False).drop_vars("backscatter_i")
             tree[eg] = xr.DataTree(ds)
         elif kind == "bad_mode":
-            ds = tree[eg].ds.copy()
+            ds = tree[eg].to_dataset(inherit=False).copy()
             ds.attrs["mode"] = "sideways"
             tree[eg] = xr.DataTree(ds)
         elif kind == "zero_interval":
-            ds = tree[eg].ds.copy()
-            ds["sample_interval"] = xr.DataArray(0.0)
+            ds = tree[eg].to_dataset(inherit=False).copy()
+            ds["sample_interval"] = ds["sample_interval"] * 0.0
             tree[eg] = xr.DataTree(ds)
         elif kind == "zero_replica":
-            ds = tree["Sonar"].ds.copy()
+            ds = tree["Sonar"].to_dataset(inherit=False).copy()
             ds["replica_r"] = ds["replica_r"] * 0
             ds["replica_i"] = ds["replica_i"] * 0
-            tree["Sonar"] = xr.DataTree(ds)
+            tree["Sonar"].dataset = ds
         elif kind == "wrong_dims":
-            ds = tree[eg].ds.copy()
-            ds["element_r"] = ds["element_r"].isel(ping_time=0)
-            ds["element_i"] = ds["element_i"].isel(ping_time=0)
+            ds = tree[eg].to_dataset(inherit=False).copy()
+            ds["backscatter_r"] = ds["backscatter_r"].isel(ping_time=0)
+            ds["backscatter_i"] = ds["backscatter_i"].isel(ping_time=0)
             tree[eg] = xr.DataTree(ds)
         elif kind == "no_sound_speed":
             ds = tree["Environment"].ds.drop_vars("sound_speed_indicative")
             tree["Environment"] = xr.DataTree(ds)
         elif kind == "only_subarray_a":
-            ds = tree[eg].ds
+            ds = tree[eg].to_dataset(inherit=False)
             keep = np.flatnonzero(ds["element_subarray"].values.astype(str) == "A")
-            tree[eg] = xr.DataTree(ds.isel(rx_element=keep))
+            tree[eg] = xr.DataTree(ds.isel(beam=keep))
         elif kind == "bad_provenance":
             ds = tree["Provenance"].ds.copy()
             ds.attrs["scene_text"] = "a: &x [1]\nb: *x\n"

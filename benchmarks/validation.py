@@ -16,6 +16,7 @@ import numpy as np
 from _report import ROOT, Report, table
 
 from acoustics.sonar import preset
+from processing.dataset import TRUTH_GROUP
 from processing.noise import RAYLEIGH_MEAN_FACTOR
 
 REPORT = Report(
@@ -207,7 +208,7 @@ def location():
         warnings.simplefilter("ignore")
         tree = processing.detect(simulate(sc))
     det = processing.detections_of(tree)
-    gt = tree["Simulation/Ground_truth"].ds
+    gt = tree[TRUTH_GROUP].ds
     tp = np.stack([gt[f"target_{a}"].values for a in "xyz"], -1)
     tping = gt["target_ping_index"].values
     er, eaz, eel, snr = [], [], [], []

@@ -30,7 +30,7 @@ from .beamforming import SubarrayGeometry
 from .compression import RangeFilter
 from .dataset import DatasetError
 
-__all__ = ["Calibration", "calibration_of", "range_energy_width_m", "beam_solid_angle_sr"]
+__all__ = ["absorption_at_carrier", "Calibration", "calibration_of", "range_energy_width_m", "beam_solid_angle_sr"]
 
 
 @dataclass(frozen=True)
@@ -75,7 +75,24 @@ def calibration_of(tree) -> Calibration:
     return Calibration(float(sonar["calibration_gain"].values),
                        np.asarray(sonar["calibration_azimuth"].values, float),
                        np.asarray(sonar["two_way_elevation_width"].values, float),
-                       float(env["absorption_indicative"].values))
+                       absorption_at_carrier(tree))
+
+
+def absorption_at_carrier(tree) -> float:
+    """α (dB/m) at the transmit centre frequency from /Environment/absorption_indicative: a
+    scalar, or along ``frequency`` (SONAR-netCDF4), interpolated at
+    /Sonar/transmit_frequency_center (the nearest value outside the tabulated range)."""
+    a = tree["Environment"].ds["absorption_indicative"]
+    v = np.asarray(a.values, float)
+    if v.ndim == 0 or v.size == 1:
+        return float(v.ravel()[0])
+    f = np.asarray(a["frequency"].values if "frequency" in a.coords else [], float)
+    sonar = tree["Sonar"].ds
+    if f.size != v.size or "transmit_frequency_center" not in sonar:
+        raise DatasetError("/Environment/absorption_indicative has several values but no frequency "
+                           "coordinate (Hz) or no /Sonar/transmit_frequency_center to pick one")
+    o = np.argsort(f)
+    return float(np.interp(float(sonar["transmit_frequency_center"].values), f[o], v.ravel()[o]))
 
 
 def range_energy_width_m(rfilter: RangeFilter, sound_speed_m_s: float) -> float:

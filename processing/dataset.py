@@ -1,16 +1,19 @@
 """The data contract between the simulator (or a recorder) and processing, and its I/O.
 
-Layout (ICES SONAR-netCDF4 as echopype lays it out; docs/dataset.md has every variable)::
+Layout (ICES SONAR-netCDF4 1.0 as echopype lays it out; docs/dataset.md has every variable)::
 
-    /                               conventions, title, summary, date_created, software_*
-    /Environment                    sound_speed_indicative, absorption_indicative, ...
-    /Platform                       sonar pose in the world frame
+    /                               conventions, sonar_convention_*, keywords (the sonar model), ...
+    /Environment                    sound_speed_indicative, absorption_indicative (frequency), ...
+    /Platform                       sonar pose in the world frame, transducer offsets
     /Provenance                     resolved scene text, sha256, seed, versions, stage timings
-    /Sonar                          transmit pulse + replica, transmitter elements, channel_all
-    /Simulation/Element_group1      element_r/element_i (ping_time, rx_element, range_sample)
-                                    float32, receiver element geometry, sample interval/offset
-    /Simulation/Ground_truth        targets per ping (simulated data only)
-    /Processing                     images, phase, elevation, detections, counts (processing)
+    /Sonar                          sonar_* attributes, beam_group_name/descr, transmit pulse +
+                                    replica, transmitter elements, calibration
+    /Sonar/Beam_group1              backscatter_r/_i (channel, ping_time, range_sample, beam)
+                                    float32: one channel (the receiver), one beam per receive
+                                    element; element geometry and subarrays per beam; sample
+                                    interval, blanking interval, transmit parameters
+    /Vendor_specific                abacus' ground truth: targets per ping (simulated data only)
+    /Processing                     images, detections, counts, tracks (processing)
 
 Complex arrays are stored as ``_r``/``_i`` float32 pairs; ``range_sample`` stays in one chunk.
 This is the only module that writes NetCDF or Zarr. Writes are atomic: a temporary file (or
@@ -29,12 +32,14 @@ from .atomic import staged
 
 __all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "ping_indices", "TRUTH_GROUP",
            "write_tree", "write_dataset", "check_finite", "NAN_MEANS", "open_tree", "tree_pings", "source_of", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
-           "read_record"]
+           "read_record", "beam_samples", "LEGACY_ELEMENT_GROUP"]
 
 FORMATS = ("netcdf", "zarr")
 CONVENTIONS = "CF-1.7, SONAR-netCDF4-1.0, ACDD-1.3"
-ELEMENT_GROUP = "Simulation/Element_group1"
-TRUTH_GROUP = "Simulation/Ground_truth"
+ELEMENT_GROUP = "Sonar/Beam_group1"
+TRUTH_GROUP = "Vendor_specific"
+#: the layout abacus wrote before SONAR-netCDF4 1.0 (read by `abacus convert`)
+LEGACY_ELEMENT_GROUP = "Simulation/Element_group1"
 
 
 class DatasetError(ValueError):
@@ -373,6 +378,56 @@ def _need(tree, group, name, where):
     return node.ds[name]
 
 
+def _has_group(tree, path) -> bool:
+    try:
+        tree[path]
+    except KeyError:
+        return False
+    return True
+
+
+def _per_channel_scalar(tree, group, name, where, default=None) -> float:
+    """A beam-group variable that may be given per channel and ping (SONAR-netCDF4) or as a
+    scalar: its one value (it must not change across pings: one record, one setting)."""
+    if default is not None and name not in tree[group].ds.variables:
+        return float(default)
+    v = np.asarray(_need(tree, group, name, where).values, float).ravel()
+    if v.size == 0 or not np.all(np.isfinite(v)):
+        raise DatasetError(f"{where}: /{group}/{name} is empty or not finite")
+    if np.ptp(v) > 1e-9 * max(abs(v[0]), 1e-30):
+        raise DatasetError(f"{where}: /{group}/{name} changes across pings or channels "
+                           f"({v.min():.6g}…{v.max():.6g}); a record must hold one setting")
+    return float(v[0])
+
+
+def beam_samples(ds: xr.Dataset, *, where: str = "") -> PairedSamples:
+    """The per-element samples of a beam group as (ping, element, sample).
+
+    ``backscatter_r/_i`` on (channel, ping_time, range_sample, beam) (echopype's complex layout)
+    or (ping_time, range_sample, beam); one channel only (the receiver; its beams are its
+    elements). Views of the stored arrays, no copy.
+    """
+    try:
+        re, im = ds["backscatter_r"], ds["backscatter_i"]
+    except KeyError:
+        raise DatasetError(f"{where}: missing variables backscatter_r/backscatter_i") from None
+    dims = tuple(re.dims)
+    if "channel" in dims:
+        if re.sizes["channel"] != 1:
+            raise DatasetError(f"{where}/backscatter_r has {re.sizes['channel']} channels; abacus reads "
+                               f"one receiver channel whose beams are its elements (docs/dataset.md)")
+        re, im = re.isel(channel=0), im.isel(channel=0)
+        dims = tuple(re.dims)
+    if set(dims) != {"ping_time", "range_sample", "beam"} or im.dims != re.dims:
+        raise DatasetError(f"{where}/backscatter_r must have dims (channel, ping_time, range_sample, "
+                           f"beam), found {ds['backscatter_r'].dims}")
+    order = [dims.index(d) for d in ("ping_time", "beam", "range_sample")]
+    try:
+        return PairedSamples(np.transpose(re.values, order), np.transpose(im.values, order))
+    except ValueError as exc:
+        raise DatasetError(f"{where}/backscatter_r/_i: {exc}") from None
+
+
 def read_record(tree: xr.DataTree, *, source: str = "") -> SonarRecord:
     """The processing view of a dataset; every missing or malformed piece is named.
 
@@ -385,23 +440,20 @@ def read_record(tree: xr.DataTree, *, source: str = "") -> SonarRecord:
     try:
         node = tree[eg]
     except KeyError:
+        if _has_group(tree, LEGACY_ELEMENT_GROUP):
+            raise DatasetError(f"{where}: the previous abacus layout (/{LEGACY_ELEMENT_GROUP}); "
+                               f"bring it to SONAR-netCDF4 with `abacus convert IN OUT`") from None
         raise DatasetError(f"{where}: missing group /{eg} (per-element samples)") from None
     ds = node.ds
-    try:
-        samples = PairedSamples(ds["element_r"].values, ds["element_i"].values)
-    except KeyError:
-        raise DatasetError(f"{where}: /{eg}: missing variables element_r/element_i") from None
-    except ValueError as exc:
-        raise DatasetError(f"{where}: /{eg}/element_r/_i: {exc}") from None
-    if samples.ndim != 3:
-        raise DatasetError(f"{where}: /{eg}/element_r must have dims (ping_time, rx_element, "
-                           f"range_sample), found {ds['element_r'].dims}")
+    samples = beam_samples(ds, where=f"{where}: /{eg}")
     if not samples.all_finite():
-        raise DatasetError(f"{where}: /{eg}/element_r/_i contain NaN or inf samples")
-    interval = float(_need(tree, eg, "sample_interval", where).values)
+        raise DatasetError(f"{where}: /{eg}/backscatter_r/_i contain NaN or inf samples")
+    interval = _per_channel_scalar(tree, eg, "sample_interval", where)
     if not interval > 0:
         raise DatasetError(f"{where}: /{eg}/sample_interval must be > 0 s, found {interval}")
-    offset = float(_need(tree, eg, "sample_time_offset", where).values)
+    # time of sample k after transmission: blanking_interval + k / fs − sample_time_offset
+    offset = (_per_channel_scalar(tree, eg, "blanking_interval", where, default=0.0)
+              - _per_channel_scalar(tree, eg, "sample_time_offset", where, default=0.0))
     pos = np.stack([_need(tree, eg, f"element_{a}", where).values for a in "xyz"], -1).astype(float)
     sub = np.asarray(_need(tree, eg, "element_subarray", where).values).astype(str)
     sonar = tree["Sonar"].ds if "Sonar" in tree.children else None

@@ -11,6 +11,7 @@ import numpy as np
 from scipy.ndimage import map_coordinates
 
 from .atomic import staged
+from .dataset import TRUTH_GROUP
 
 __all__ = ["fan_beam", "plot_fan", "plot_range_profiles", "plot_phase_map", "save", "fixed_layout"]
 
@@ -233,8 +234,8 @@ def count_figures(tree, outdir: Path, *, pings=(0,), max_pings: int = 5,
     r, th = im.range_m, im.beam_angle_rad
     paths = []
     truth = None
-    if "Simulation" in tree.children and "Ground_truth" in tree["Simulation"].children:
-        gt = tree["Simulation/Ground_truth"].ds
+    if TRUTH_GROUP in tree.children and "target_x" in tree[TRUTH_GROUP].ds:
+        gt = tree[TRUTH_GROUP].ds
         truth = (gt["target_ping_index"].values, np.stack([gt[f"target_{a}"].values for a in "xyz"], -1))
     g = 0
     for i, p in enumerate(pings):

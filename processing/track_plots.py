@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .dataset import TRUTH_GROUP
 from .plots import fixed_layout, save
 
 __all__ = ["track_figures", "volume_outline_m"]
@@ -92,8 +93,8 @@ def track_figures(tree, outdir: Path) -> list[Path]:
             pos, rot = pos[0], rot[0]
         outline = outline @ rot.T + pos
     truth = None
-    if "Simulation" in tree.children and "Ground_truth" in tree["Simulation"].children:
-        gt = tree["Simulation/Ground_truth"].ds
+    if TRUTH_GROUP in tree.children:
+        gt = tree[TRUTH_GROUP].ds
         if "target_id" in gt and "target_in_counting_volume" in gt:
             ids = gt["target_id"].values
             passed = np.unique(ids[gt["target_in_counting_volume"].values.astype(bool)])

@@ -16,7 +16,7 @@ ALLOWED_FROM_PROCESSING = {
     "processing.atomic", "processing.counting", "processing.noise", "processing.evaluate",
     "processing.results", "processing.report", "processing.plots", "processing.products",
     "processing.resources", "processing.chain", "processing.tracks", "processing.track_plots",
-    "processing.volume_backscatter", "processing.single_targets",
+    "processing.volume_backscatter", "processing.single_targets", "processing.convert",
 }
 
 

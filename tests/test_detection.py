@@ -197,7 +197,7 @@ def test_isolated_targets_are_located_within_resolution():
         warnings.simplefilter("ignore")  # strong targets' sidelobes make the cells less Rayleigh
         tree = processing.detect(simulate(sc))
     det = processing.detections_of(tree)
-    gt = tree["Simulation/Ground_truth"].ds
+    gt = tree["Vendor_specific"].ds
     tp = np.stack([gt[f"target_{a}"].values for a in "xyz"], -1)
     tping = gt["target_ping_index"].values
     pds = tree["Processing"].ds

@@ -166,7 +166,7 @@ def test_a_fish_echoes_as_its_bladder_meshed_as_a_target(tilt_deg, heading):
     assert 20 * np.log10(point[0] / mesh[0]) == pytest.approx(0.0, abs=0.5)
     # the truth holds the fish's TS at its actual incidence: what geometric optics gives there
     alpha = math.radians(tilt_deg) if heading == "north" else math.atan2(2.0, 20.0)
-    truth_ts = tree["Simulation/Ground_truth"].ds["target_ts"].values[0]
+    truth_ts = tree["Vendor_specific"].ds["target_ts"].values[0]
     assert truth_ts == pytest.approx(_go_ts_db(a, b, alpha), abs=0.3)
 
 
@@ -182,7 +182,7 @@ def test_fish_tilts_are_drawn_per_ping_from_the_scene_distribution():
                      tilt_mean_deg: 10, tilt_sd_deg: 5}}}}"""
     sc = _quiet(SCENE.format(targets=text))
     tree = acoustics.simulate(sc, pings=range(3))
-    gt = tree["Simulation/Ground_truth"].ds
+    gt = tree["Vendor_specific"].ds
     ts, ping = gt["target_ts"].values, gt["target_ping_index"].values
     grid = np.radians(np.linspace(0, 45, 4501))
     alpha = np.interp(-ts, -_go_ts_db(a, b, grid), grid)     # GO falls monotonically with |α|
@@ -191,7 +191,7 @@ def test_fish_tilts_are_drawn_per_ping_from_the_scene_distribution():
     assert np.degrees(alpha).mean() == pytest.approx(folded.mean(), abs=0.8)
     assert np.degrees(alpha).std() == pytest.approx(folded.std(), abs=0.6)
     assert not np.array_equal(ts[ping == 0], ts[ping == 1])
-    alone = acoustics.simulate(sc, pings=[2])["Simulation/Ground_truth"].ds["target_ts"].values
+    alone = acoustics.simulate(sc, pings=[2])["Vendor_specific"].ds["target_ts"].values
     np.testing.assert_array_equal(alone, ts[ping == 2])
     assert "swimbladder_ts" in list(tree["Provenance"].ds["stage"].values)
 
@@ -204,7 +204,7 @@ def test_point_fish_with_different_bladders_keep_their_own():
        width_m: 0.02, tilt_sd_deg: 0}}
     - {frame: world, position_m: [0, 0.3, 21.0], backscatter: {model: swimbladder, length_m: 0.06,
        width_m: 0.01, tilt_sd_deg: 0}}""")
-    ts = tree["Simulation/Ground_truth"].ds["target_ts"].values
+    ts = tree["Vendor_specific"].ds["target_ts"].values
     psms = {(r["a_m"], r["b_m"]): r["ts_db"] for r in REF["rows"] if r["tilt_deg"] == 0.1}
     assert ts[0] == pytest.approx(psms[(0.05, 0.01)], abs=1.0)
     assert ts[1] == pytest.approx(psms[(0.03, 0.005)], abs=1.0)
@@ -223,7 +223,7 @@ def test_a_school_of_realistic_fish_has_realistic_target_strengths():
     sc = _quiet("name: fish\nmedium: {sound_speed_m_s: 1500}\ntargets:\n  populations:\n"
                 "    - {kind: uniform_cuboid, x_m: [-1,1], y_m: [-2,2], z_m: [15,25], count: 300,\n"
                 "       backscatter: {model: swimbladder, length_m: 0.06, width_m: 0.01}}\n")
-    ts = acoustics.simulate(sc, pings=range(2))["Simulation/Ground_truth"].ds["target_ts"].values
+    ts = acoustics.simulate(sc, pings=range(2))["Vendor_specific"].ds["target_ts"].values
     broadside = next(r["ts_db"] for r in REF["rows"]
                      if r["a_m"] == 0.03 and r["b_m"] == 0.005 and r["tilt_deg"] == 0.1)
     assert ts.max() <= broadside + 0.5

@@ -48,7 +48,7 @@ def test_sea_noise_is_thermal_noise_through_one_element():
     v2 = (10 ** (nl / 10) * 10 ** (M / 10) + (1e-9) ** 2) * sc.noise.bandwidth_hz
     sigma = math.sqrt(v2 / 2) * 10 ** (G / 20) * 2 ** (BITS - 1) / VFS
     tree = acoustics.simulate(sc, pings=range(2))
-    x = tree["Simulation/Element_group1"]["element_r"].values
+    x = tree["Sonar/Beam_group1"]["backscatter_r"].values
     assert np.std(x) == pytest.approx(sigma, rel=0.02)
 
 

@@ -22,7 +22,7 @@ def scene(text):
 
 
 def truth(tree):
-    gt = tree["Simulation/Ground_truth"].ds
+    gt = tree["Vendor_specific"].ds
     return {k: gt[k].values for k in gt.data_vars}
 
 

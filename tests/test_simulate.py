@@ -14,7 +14,7 @@ from acoustics.sonar.directivity import array_response, element_directivity
 from acoustics.scene import scene_from_text
 from acoustics.simulation.run import make_setup, simulate
 from acoustics.synthesis.synthesize import synthesize
-from processing.dataset import ELEMENT_GROUP, TRUTH_GROUP, open_tree, read_record, write_tree
+from processing.dataset import ELEMENT_GROUP, TRUTH_GROUP, beam_samples, open_tree, read_record, write_tree
 
 from .conftest import SCENES
 
@@ -32,8 +32,7 @@ def text_scene(text):
 
 
 def samples_of(tree):
-    ds = tree[ELEMENT_GROUP].ds
-    return ds["element_r"].values.astype(float) + 1j * ds["element_i"].values.astype(float)
+    return np.asarray(beam_samples(tree[ELEMENT_GROUP].ds))      # (ping, element, sample)
 
 
 def matched_filter(x, replica, up=16):
@@ -191,15 +190,15 @@ targets:
 """)
     a = simulate(scene, pings=range(10))
     b = simulate(scene, pings=range(10))
-    for v in ("element_r", "element_i"):
+    for v in ("backscatter_r", "backscatter_i"):
         assert a[ELEMENT_GROUP].ds[v].values.tobytes() == b[ELEMENT_GROUP].ds[v].values.tobytes()
     c = simulate(scene, pings=range(5, 10))
-    assert np.array_equal(a[ELEMENT_GROUP].ds["element_r"].values[5:], c[ELEMENT_GROUP].ds["element_r"].values)
-    assert np.array_equal(a[ELEMENT_GROUP].ds["element_i"].values[5:], c[ELEMENT_GROUP].ds["element_i"].values)
+    assert np.array_equal(a[ELEMENT_GROUP].ds["backscatter_r"].values[:, 5:], c[ELEMENT_GROUP].ds["backscatter_r"].values)
+    assert np.array_equal(a[ELEMENT_GROUP].ds["backscatter_i"].values[:, 5:], c[ELEMENT_GROUP].ds["backscatter_i"].values)
     d = simulate(scene, pings=[7, 5])
-    assert np.array_equal(d[ELEMENT_GROUP].ds["element_r"].values[1], c[ELEMENT_GROUP].ds["element_r"].values[0])
+    assert np.array_equal(d[ELEMENT_GROUP].ds["backscatter_r"].values[:, 1], c[ELEMENT_GROUP].ds["backscatter_r"].values[:, 0])
     other = simulate(scene, pings=range(1), seed=100)
-    assert not np.array_equal(other[ELEMENT_GROUP].ds["element_r"].values[0], a[ELEMENT_GROUP].ds["element_r"].values[0])
+    assert not np.array_equal(other[ELEMENT_GROUP].ds["backscatter_r"].values[:, 0], a[ELEMENT_GROUP].ds["backscatter_r"].values[:, 0])
 
 
 def test_result_does_not_depend_on_thread_count():

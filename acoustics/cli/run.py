@@ -110,7 +110,7 @@ def run_notes(tree, caught) -> list[str]:
     clipped = tree[ELEMENT_GROUP].ds.get("adc_clipped_samples")
     if clipped is not None and int(clipped.sum()):
         n = int(clipped.sum())
-        pings = int((clipped.sum("rx_element") > 0).sum())
+        pings = int((clipped.sum("beam") > 0).sum())
         notes.append(f"the ADC clipped {n} samples in {pings} ping(s): echoes beyond its range "
                      f"are distorted (sampling.adc.bits, sampling.adc.scale_counts)")
     return notes

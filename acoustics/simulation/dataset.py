@@ -14,7 +14,10 @@ from processing.dataset import CONVENTIONS, ELEMENT_GROUP, TRUTH_GROUP, split_co
 from acoustics.frames import cartesian_to_spherical
 from acoustics.sonar.calibration import sonar_calibration
 
-__all__ = ["build_tree", "provenance_dataset", "versions", "rays_cast"]
+__all__ = ["build_tree", "beam_group", "provenance_dataset", "versions", "rays_cast", "CHANNEL"]
+
+#: the one SONAR-netCDF4 channel of a run: the receiver; its elements are the beams
+CHANNEL = "abacus-receiver"
 
 
 def _element_geometry(elements, prefix: str, dim: str) -> dict:
@@ -62,24 +65,29 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.Da
     ping_time = _ping_times(scene, pings)
     rx = sonar.receiver
     el = rx.elements
-    n_ch = el.n_elements
     chan_names = np.array([f"{sub}{idx}" for sub, idx in rx.channels])
     now = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()
 
+    model = "ABACUS" if scene.sonar.preset == "abacus" else "custom"
     root = xr.Dataset(attrs={
-        "conventions": CONVENTIONS, "keywords": "sonar, multibeam, ABACUS, simulation, fisheries acoustics",
+        # SONAR-netCDF4 1.0 (ICES CRR 341) top level; echopype reads ``keywords`` as the sonar model
+        "conventions": CONVENTIONS, "sonar_convention_authority": "ICES",
+        "sonar_convention_name": "SONAR-netCDF4", "sonar_convention_version": "1.0",
+        "keywords": model,
         "title": f"abacus simulation: {scene.name}", "summary": scene.description.strip() or scene.name,
         "date_created": now, "software_name": "abacus",
         "software_version": versions()["abacus"], "data_kind": "simulated"})
 
     env = xr.Dataset({
         "sound_speed_indicative": xr.DataArray(medium.sound_speed_m_s, attrs={"units": "m/s"}),
-        "absorption_indicative": xr.DataArray(medium.absorption_db_per_m,
-                                              attrs={"units": "dB/m", "frequency_hz": pulse.center_frequency_hz}),
+        "absorption_indicative": xr.DataArray([medium.absorption_db_per_m], dims="frequency",
+                                              attrs={"units": "dB/m", "long_name": "indicative absorption "
+                                                     "at the transmit centre frequency"}),
         "temperature": xr.DataArray(medium.temperature_c, attrs={"units": "degree_Celsius"}),
         "salinity": xr.DataArray(medium.salinity_psu, attrs={"units": "PSU"}),
         "depth": xr.DataArray(medium.depth_m, attrs={"units": "m", "long_name": "depth at which absorption was evaluated"}),
-        "ph": xr.DataArray(medium.ph)})
+        "ph": xr.DataArray(medium.ph)},
+        coords={"frequency": xr.DataArray([pulse.center_frequency_hz], dims="frequency", attrs={"units": "Hz"})})
 
     pose = sonar.pose
     platform_ds = xr.Dataset({
@@ -88,6 +96,10 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.Da
         "sonar_rotation": xr.DataArray(pose.rotation, dims=("world_axis", "sonar_axis"),
                                        attrs={"long_name": "columns: sonar axes x_s, y_s, z_s in world coordinates"})},
         coords={"world_axis": ["x", "y", "z"], "sonar_axis": ["x", "y", "z"]})
+    for k, a in enumerate("xyz"):   # SONAR-netCDF4's transducer offset: the sonar at rest
+        platform_ds[f"transducer_offset_{a}"] = xr.DataArray(
+            [pose.position_m[k]], dims="channel", coords={"channel": [CHANNEL]},
+            attrs={"units": "m", "long_name": f"transducer {a} offset from the platform origin"})
     if setup.platform is not None:
         # a moving platform: the pose of every ping, and the attitude it came from
         poses = [setup.pose_at(p) for p in pings]
@@ -133,36 +145,25 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.Da
          "calibration_gain": xr.DataArray(cal_gain, attrs={
              "units": "counts m", "long_name": "G = k S: image peak of a target of backscatter "
              "amplitude 1 m at 1 m on the transmit axis (see acoustics/calibration.py)"}),
+         "beam_group_name": xr.DataArray(["Beam_group1"], dims="beam_group"),
+         "beam_group_descr": xr.DataArray(
+             ["complex baseband samples of every receive element: one beam per element "
+              "(docs/dataset.md, 'Beams are elements')"], dims="beam_group"),
          "two_way_elevation_width": xr.DataArray(cal_width, dims="calibration_azimuth", attrs={
              "units": "rad", "long_name": "integral over elevation of |E_t|^2 |D_rx|^2 cos(elevation), "
              "per azimuth: the sonar's part of echo integration's equivalent beam"})},
-        coords={"channel_all": chan_names, "replica_sample": np.arange(replica.size),
+        coords={"channel_all": [CHANNEL], "beam_group": ["Beam_group1"], "replica_sample": np.arange(replica.size),
                 "calibration_azimuth": xr.DataArray(cal_az, dims="calibration_azimuth",
                                                     attrs={"units": "rad"})},
         attrs={"transmit_type": "LFM", "taper": pulse.taper, "sweep": pulse.sweep,
-               "sonar_model": "ABACUS" if scene.sonar.preset == "abacus" else "custom",
+               "sonar_manufacturer": "abacus (simulated)", "sonar_model": model,
+               "sonar_serial_number": "", "sonar_software_name": "abacus",
+               "sonar_software_version": versions()["abacus"], "sonar_type": "multibeam",
                "variant": scene.sonar.variant if scene.sonar.preset == "abacus" else "explicit",
                "mode": rx.mode, "frame": "sonar frame: +z boresight, +x along the receiver, +y along the transmitter"})
 
-    eg = xr.Dataset(
-        {**split_complex("element", samples, ("ping_time", "rx_element", "range_sample"),
-                         {"units": "ADC counts", "long_name": "complex baseband samples per receiver element"}),
-         **_element_geometry(el, "element", "rx_element"),
-         "element_subarray": xr.DataArray(rx.channel_subarray.astype(str), dims="rx_element"),
-         "element_index_in_subarray": xr.DataArray(np.array([i for _, i in rx.channels]), dims="rx_element"),
-         "sample_interval": xr.DataArray(1.0 / s.rate_hz, attrs={"units": "s"}),
-         "sample_time_offset": xr.DataArray(s.time_offset_s, attrs={"units": "s", "long_name": "time of sample 0 after the start of transmission"})},
-        coords={"ping_time": ping_time, "ping_index": ("ping_time", np.asarray(pings, np.int64)),
-                "rx_element": np.arange(n_ch), "channel": ("rx_element", chan_names),
-                "range_sample": np.arange(s.samples)},
-        attrs={"mode": rx.mode, "adc_scale_counts": s.adc.scale_counts,
-               "adc_quantized": int(s.adc.quantize), "adc_bits": s.adc.bits,
-               "noise_enabled": int(scene.noise.enabled), "noise_sigma_counts": scene.noise.sigma_counts,
-               "noise_bandwidth_hz": scene.noise.bandwidth_hz,
-               "receiver_bandwidth_hz": s.receiver_bandwidth_hz})
-    if clipped is not None:
-        eg["adc_clipped_samples"] = xr.DataArray(clipped, dims=("ping_time", "rx_element"),
-                                                 attrs={"long_name": "samples clipped by the ADC (I or Q)"})
+    eg = beam_group(scene, setup, pings, ping_time, samples, clipped, chan_names,
+                    psi_element_sr=float(np.trapezoid(cal_width, cal_az)))
 
     truth_ds = _truth(setup, pings, ping_time, truth)
     tree = xr.DataTree.from_dict({
@@ -170,6 +171,85 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.Da
         "/Provenance": provenance_dataset(scene, seed, log, rays_cast(setup)), "/Sonar": sonar_ds,
         f"/{ELEMENT_GROUP}": eg, f"/{TRUTH_GROUP}": truth_ds})
     return tree
+
+
+def _element_beamwidth_deg(size_m, wavelength_m):
+    """3 dB full width (deg) of a baffled rectangular piston of this size: |sinc(w u/λ)| = 1/√2
+    at w u/λ = 0.4429."""
+    return np.degrees(2 * np.arcsin(np.minimum(0.4429 * wavelength_m / np.asarray(size_m, float), 1.0)))
+
+
+def beam_group(scene, setup, pings, ping_time, samples, clipped, chan_names, *, psi_element_sr):
+    """/Sonar/Beam_group1: the per-element samples as SONAR-netCDF4 lays out complex data in
+    echopype (``backscatter_r/_i`` on (channel, ping_time, range_sample, beam)), one channel (the
+    receiver) whose beams are its elements, with the beam-group variables of the convention and
+    the element geometry processing needs."""
+    sonar, pulse = setup.sonar, setup.pulse
+    s = scene.sampling
+    rx = sonar.receiver
+    el = rx.elements
+    n_p = len(pings)
+    lam = setup.medium.sound_speed_m_s / pulse.center_frequency_hz
+    rot = sonar.pose.rotation
+    # each element faces the sonar's +z (rotations are about z): its direction in the platform frame
+    direction = np.broadcast_to(rot @ np.array([0.0, 0.0, 1.0]), (el.n_elements, 3))
+    per_ping = lambda v: xr.DataArray(np.full((1, n_p), float(v)), dims=("channel", "ping_time"))
+    per_beam = lambda v: xr.DataArray(np.asarray(v, float)[None, :], dims=("channel", "beam"))
+    pair = {k: xr.DataArray(v.values[None].transpose(0, 1, 3, 2),
+                            dims=("channel", "ping_time", "range_sample", "beam"), attrs=v.attrs)
+            for k, v in split_complex("backscatter", samples, ("ping_time", "beam", "range_sample"),
+                                      {"units": "ADC counts",
+                                       "long_name": "complex baseband samples per receive element"}).items()}
+    start = pulse.center_frequency_hz - np.sign(pulse.chirp_rate_hz_s or 1) * pulse.bandwidth_hz / 2
+    stop = pulse.center_frequency_hz + np.sign(pulse.chirp_rate_hz_s or 1) * pulse.bandwidth_hz / 2
+    eg = xr.Dataset(
+        {**pair,
+         "beam_type": xr.DataArray(["single"], dims="channel",
+                                   attrs={"long_name": "each beam is one element's own (unsteered) beam"}),
+         "beam_direction_x": per_beam(direction[:, 0]), "beam_direction_y": per_beam(direction[:, 1]),
+         "beam_direction_z": per_beam(direction[:, 2]),
+         "beamwidth_receive_major": per_beam(_element_beamwidth_deg(el.width_m, lam)),
+         "beamwidth_receive_minor": per_beam(_element_beamwidth_deg(el.height_m, lam)),
+         "beamwidth_transmit_major": per_beam(np.full(el.n_elements, np.degrees(setup.tx_beamwidth_az_rad))),
+         "beamwidth_transmit_minor": per_beam(np.full(el.n_elements, np.degrees(setup.tx_beamwidth_el_rad))),
+         "equivalent_beam_angle": per_beam(np.full(el.n_elements, 10 * np.log10(psi_element_sr))),
+         "sample_interval": per_ping(1.0 / s.rate_hz),
+         "blanking_interval": per_ping(s.time_offset_s),
+         "sample_time_offset": per_ping(0.0),
+         "transmit_frequency_start": per_ping(start), "transmit_frequency_stop": per_ping(stop),
+         "transmit_duration_nominal": per_ping(pulse.duration_s),
+         "transmit_bandwidth": per_ping(pulse.bandwidth_hz),
+         "transmit_type": xr.DataArray(["LFM"], dims="channel"),
+         "beam_stabilisation": xr.DataArray(np.zeros(n_p, np.int8), dims="ping_time"),
+         "non_quantitative_processing": xr.DataArray(np.zeros(n_p, np.int16), dims="ping_time"),
+         **_element_geometry(el, "element", "beam"),
+         "element_subarray": xr.DataArray(rx.channel_subarray.astype(str), dims="beam"),
+         "element_index_in_subarray": xr.DataArray(np.array([i for _, i in rx.channels]), dims="beam")},
+        coords={"channel": [CHANNEL], "ping_time": ping_time,
+                "ping_index": ("ping_time", np.asarray(pings, np.int64)),
+                "range_sample": np.arange(s.samples), "beam": chan_names},
+        attrs={"mode": rx.mode, "adc_scale_counts": s.adc.scale_counts,
+               "adc_quantized": int(s.adc.quantize), "adc_bits": s.adc.bits,
+               "noise_enabled": int(scene.noise.enabled), "noise_sigma_counts": scene.noise.sigma_counts,
+               "noise_bandwidth_hz": scene.noise.bandwidth_hz,
+               "receiver_bandwidth_hz": s.receiver_bandwidth_hz, "beam_mode": "vertical",
+               "conversion_equation_type": "none: samples are complex baseband in ADC counts"})
+    units = {"beam_direction_x": "1", "beam_direction_y": "1", "beam_direction_z": "1",
+             "beamwidth_receive_major": "arc_degree", "beamwidth_receive_minor": "arc_degree",
+             "beamwidth_transmit_major": "arc_degree", "beamwidth_transmit_minor": "arc_degree",
+             "equivalent_beam_angle": "dB re 1 sr", "sample_interval": "s", "blanking_interval": "s",
+             "sample_time_offset": "s", "transmit_frequency_start": "Hz", "transmit_frequency_stop": "Hz",
+             "transmit_duration_nominal": "s", "transmit_bandwidth": "Hz"}
+    for k, u in units.items():
+        eg[k].attrs["units"] = u
+    eg["blanking_interval"].attrs["long_name"] = "time of sample 0 after the start of transmission"
+    eg["equivalent_beam_angle"].attrs["long_name"] = ("10 log10 of the two-way equivalent solid angle "
+                                                      "of the transmitter and one element")
+    eg["beam_direction_x"].attrs["long_name"] = "beam (element normal) direction in the platform frame"
+    if clipped is not None:
+        eg["adc_clipped_samples"] = xr.DataArray(clipped, dims=("ping_time", "beam"),
+                                                 attrs={"long_name": "samples clipped by the ADC (I or Q)"})
+    return eg
 
 
 def rays_cast(setup) -> dict:

@@ -49,15 +49,15 @@ def simulate(scene, *, pings=None, seed: int | None = None, progress=None):
     -------
     xarray.DataTree
         The data contract of DESIGN.md (processing.dataset): per-element samples as float32
-        ``element_r``/``element_i`` (ping_time, rx_element, range_sample), geometry, pulse and
+        ``backscatter_r``/``backscatter_i`` (channel, ping_time, range_sample, beam) in /Sonar/Beam_group1, geometry, pulse and
         replica, environment, ground truth, provenance with the resolved scene and stage times.
 
     Examples
     --------
     >>> scene = acoustics.load_scene("default")            # a built-in scene, or a path
     >>> tree = acoustics.simulate(scene, pings=range(2), seed=7)
-    >>> tree["Simulation/Element_group1"]["element_r"].dims
-    ('ping_time', 'rx_element', 'range_sample')
+    >>> tree["Sonar/Beam_group1"]["backscatter_r"].dims
+    ('channel', 'ping_time', 'range_sample', 'beam')
     """
     seed = scene.seed if seed is None else int(seed)
     if seed < 0:

@@ -1,0 +1,161 @@
+"""Standard data in and out (issue 16): the SONAR-netCDF4 layout, recorded .mat files of another
+array read and imaged, and the previous abacus layout converted to the same detections. The
+files here are written by the tests themselves (scipy.io, plain xarray), not by abacus' writer."""
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import scipy.io
+import xarray as xr
+
+import acoustics
+import processing
+from processing.dataset import ELEMENT_GROUP, TRUTH_GROUP, beam_samples, open_tree
+
+from .test_cli import abacus
+
+C, F0, B, FS = 1500.0, 200e3, 20e3, 80e3
+
+
+def _recording(path, *, az_deg=10.0, el_deg=0.5, range_m=18.0, pings=3, **override):
+    """A .mat recording of a point target by a 200 kHz sonar unlike ABACUS: two subarrays of 8
+    elements at 0.6 λ pitch, 2 λ apart, an 8-element transmitter; echoes computed here from the
+    two-way delay of every element (the LFM replica delayed, carrier phase −2π f0 τ)."""
+    lam = C / F0
+    T = 1e-3
+    t = np.arange(int(T * FS)) / FS
+    rep = np.exp(1j * np.pi * (B / T) * (t - T / 2) ** 2) * np.hanning(t.size)
+    x = (np.arange(8) - 3.5) * 0.6 * lam
+    el = np.concatenate([np.c_[x, np.full(8, -lam), np.zeros(8)], np.c_[x, np.full(8, lam), np.zeros(8)]])
+    tx = np.c_[np.zeros(8), (np.arange(8) - 3.5) * 0.5 * lam, np.zeros(8)]
+    th, ph = np.radians(az_deg), np.radians(el_deg)
+    p = range_m * np.array([np.cos(ph) * np.sin(th), np.sin(ph), np.cos(ph) * np.cos(th)])
+    t0, ns = 0.01, 2048
+    ts = t0 + np.arange(ns) / FS
+    X = np.zeros((pings, 16, ns), complex)
+    for k in range(16):
+        tau = (np.linalg.norm(p - tx.mean(0)) + np.linalg.norm(p - el[k])) / C
+        u = np.interp(ts - tau, t, rep.real, left=0, right=0) + 1j * np.interp(ts - tau, t, rep.imag, left=0, right=0)
+        X[:, k] = 100 * u * np.exp(-2j * np.pi * F0 * tau)
+    rng = np.random.default_rng(0)
+    X += rng.normal(0, 1, X.shape) + 1j * rng.normal(0, 1, X.shape)
+    fields = {"samples": X, "fs": FS, "f0": F0, "bandwidth": B, "replica": rep, "c": C,
+              "element_xyz": el, "element_subarray": np.array(list("A" * 8 + "B" * 8)), "tx_xyz": tx,
+              "t0": t0, "tx_beamwidth_deg": [30.0, 14.0]}
+    fields.update(override)
+    fields = {k: v for k, v in fields.items() if v is not None}
+    scipy.io.savemat(path, fields)
+    return path
+
+
+def test_a_mat_recording_of_another_array_is_converted_imaged_and_located(tmp_path):
+    """`abacus convert` then `abacus count`: the target is found at its range within a quarter of
+    the 3.75 cm range resolution, its azimuth within 0.25° (2 % of the 8-element beam's 12°) and
+    its interferometric elevation within 0.1° (σ ≈ λ/(2π b √SNR) ≈ 0.05° at the 40 dB per-element
+    SNR of the recording)."""
+    _recording(tmp_path / "rec.mat")
+    r = abacus("convert", "rec.mat", "rec.nc", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    tree = open_tree(tmp_path / "rec.nc")
+    assert tree[ELEMENT_GROUP].ds["backscatter_r"].dims == ("channel", "ping_time", "range_sample", "beam")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        d = processing.detections_of(processing.detect(tree))
+    for p in range(3):
+        k = np.flatnonzero(d["ping"].values == p)
+        i = k[np.argmax(d["amplitude"].values[k])]
+        assert abs(float(d["range_m"][i]) - 18.0) < 0.25 * C / (2 * B)
+        assert abs(np.degrees(float(d["azimuth_rad"][i])) - 10.0) < 0.25
+        assert abs(np.degrees(float(d["elevation_rad"][i])) - 0.5) < 0.1
+
+
+@pytest.mark.parametrize("override, words", [
+    ({"fs": None}, "missing field 'fs'"),
+    ({"element_xyz": np.zeros((15, 3))}, "element positions must be 16 x 3"),
+    ({"element_subarray": np.arange(16.0)}, "'element_subarray' must be text"),
+    ({"mode": "sideways"}, "accepted: interferometric, normal, combined"),
+])
+def test_a_bad_mat_recording_is_one_line_naming_the_field(tmp_path, override, words):
+    _recording(tmp_path / "bad.mat", pings=1, **override)
+    r = abacus("convert", "bad.mat", "out.nc", cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert words in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "out.nc").exists()
+
+
+def test_a_matlab_v73_file_says_how_to_save_it(tmp_path):
+    (tmp_path / "r.mat").write_bytes(b"MATLAB 7.3 MAT-file, Platform: GLNXA64" + b"\0" * 200)
+    r = abacus("convert", "r.mat", "out.nc", cwd=tmp_path)
+    assert r.returncode == 2 and "-v7" in r.stderr
+
+
+def _legacy(tree) -> xr.DataTree:
+    """The layout abacus wrote before SONAR-netCDF4, rebuilt by hand from a dataset's arrays."""
+    eg = tree[ELEMENT_GROUP].to_dataset(inherit=False)
+    x = np.asarray(beam_samples(eg)).astype(np.complex64)             # (ping, element, sample)
+    old = xr.Dataset(
+        {"element_r": (("ping_time", "rx_element", "range_sample"), x.real),
+         "element_i": (("ping_time", "rx_element", "range_sample"), x.imag),
+         **{f"element_{k}": ("rx_element", eg[f"element_{k}"].values)
+            for k in ("x", "y", "z", "width", "height", "rotation", "subarray", "index_in_subarray")},
+         "sample_interval": float(eg["sample_interval"].values.ravel()[0]),
+         "sample_time_offset": float(eg["blanking_interval"].values.ravel()[0])},
+        coords={"ping_time": eg["ping_time"].values, "ping_index": ("ping_time", eg["ping_index"].values),
+                "rx_element": np.arange(x.shape[1]), "channel": ("rx_element", eg["beam"].values)},
+        attrs=eg.attrs)
+    groups = {"/": tree.to_dataset(inherit=False), "/Simulation/Element_group1": old,
+              "/Simulation/Ground_truth": tree[TRUTH_GROUP].to_dataset(inherit=False)}
+    for name in ("Environment", "Platform", "Provenance"):
+        groups[f"/{name}"] = tree[name].to_dataset(inherit=False)
+    sonar = tree["Sonar"].to_dataset(inherit=False)
+    groups["/Sonar"] = sonar.drop_vars(["beam_group_name", "beam_group_descr", "beam_group"]).assign_coords(
+        channel_all=eg["beam"].values)
+    return xr.DataTree.from_dict(groups)
+
+
+def test_the_previous_layout_converts_to_the_same_detections(tmp_path):
+    scene = acoustics.load_scene("two_targets")
+    tree = acoustics.simulate(scene, pings=range(2))
+    processing.write_tree(tree, tmp_path / "new.nc")
+    _legacy(tree).to_netcdf(tmp_path / "old.nc")
+    r = abacus("count", "old.nc", cwd=tmp_path)
+    assert r.returncode == 2 and "abacus convert" in r.stderr           # says what to do
+    r = abacus("convert", "old.nc", "conv.nc", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a = processing.detections_of(processing.count(open_tree(tmp_path / "new.nc")))
+        b = processing.detections_of(processing.count(open_tree(tmp_path / "conv.nc")))
+    assert a.sizes == b.sizes and len(a["range_m"]) > 0
+    for v in ("range_m", "azimuth_rad", "elevation_rad", "amplitude", "world_z_m"):
+        np.testing.assert_array_equal(a[v].values, b[v].values)
+    conv = open_tree(tmp_path / "conv.nc")
+    np.testing.assert_array_equal(conv[TRUTH_GROUP].ds["target_range"].values,
+                                  tree[TRUTH_GROUP].ds["target_range"].values)
+
+
+def test_the_dataset_is_sonar_netcdf4_as_echopype_reads_it(tmp_path):
+    """What echopype's open_converted and repr rely on (checked with echopype itself by
+    benchmarks/interop.py, docs/interop.md): the convention attributes, keywords as the sonar
+    model, every group one echopype knows, beam_group_descr for the beam group, and the samples
+    in Beam_group1 equal to the simulation's."""
+    tree = acoustics.simulate(acoustics.load_scene("two_targets"), pings=range(2))
+    processing.write_tree(tree, tmp_path / "s.nc")
+    t = xr.open_datatree(tmp_path / "s.nc")
+    a = t.attrs
+    assert (a["sonar_convention_authority"], a["sonar_convention_name"], a["sonar_convention_version"]) == \
+        ("ICES", "SONAR-netCDF4", "1.0")
+    assert a["keywords"] == t["Sonar"].attrs["sonar_model"] == "ABACUS"
+    known = {"/", "/Environment", "/Platform", "/Provenance", "/Sonar", "/Sonar/Beam_group1", "/Vendor_specific"}
+    assert {n.path for n in t.subtree} <= known
+    assert t["Sonar"].ds["beam_group_descr"].sel(beam_group="Beam_group1").size == 1
+    bg = t["Sonar/Beam_group1"].ds
+    assert bg["backscatter_r"].dims == ("channel", "ping_time", "range_sample", "beam")
+    np.testing.assert_array_equal(np.asarray(beam_samples(bg)), np.asarray(beam_samples(tree[ELEMENT_GROUP].ds)))
+    for v in ("sample_interval", "blanking_interval", "transmit_frequency_start", "transmit_duration_nominal"):
+        assert bg[v].dims == ("channel", "ping_time")
+    for v in ("beam_direction_z", "beamwidth_receive_major", "equivalent_beam_angle"):
+        assert bg[v].dims == ("channel", "beam") and np.all(np.isfinite(bg[v].values))
+    assert t["Environment"].ds["absorption_indicative"].dims == ("frequency",)
