@@ -159,3 +159,71 @@ def test_the_dataset_is_sonar_netcdf4_as_echopype_reads_it(tmp_path):
     for v in ("beam_direction_z", "beamwidth_receive_major", "equivalent_beam_angle"):
         assert bg[v].dims == ("channel", "beam") and np.all(np.isfinite(bg[v].values))
     assert t["Environment"].ds["absorption_indicative"].dims == ("frequency",)
+
+
+def test_a_mat_twin_of_a_simulation_gives_the_same_detections(tmp_path):
+    """The same samples in a third-party layout: a simulation's per-element samples and geometry
+    saved to a .mat file by scipy.io, converted, and counted under the same settings, give the
+    detections of the abacus-written dataset exactly (same numbers in, same numbers out)."""
+    tree = acoustics.simulate(acoustics.load_scene("two_targets"), pings=range(2))
+    eg = tree[ELEMENT_GROUP].ds
+    sonar = tree["Sonar"].ds
+    x = np.asarray(beam_samples(eg)).astype(np.complex64)
+    scipy.io.savemat(tmp_path / "twin.mat", {
+        "samples": x, "fs": 1.0 / float(eg["sample_interval"].values.ravel()[0]),
+        "t0": float(eg["blanking_interval"].values.ravel()[0]),
+        "f0": float(sonar["transmit_frequency_center"]), "bandwidth": float(sonar["transmit_bandwidth"]),
+        "replica": sonar["replica_r"].values + 1j * sonar["replica_i"].values,
+        "c": float(tree["Environment"].ds["sound_speed_indicative"]),
+        "element_xyz": np.stack([eg[f"element_{a}"].values for a in "xyz"], -1),
+        "element_subarray": np.array(list("".join(eg["element_subarray"].values.astype(str)))),
+        "tx_xyz": np.stack([sonar[f"tx_element_{a}"].values for a in "xyz"], -1),
+        "tx_weight": sonar["tx_element_weight"].values,
+        "tx_beamwidth_deg": [float(sonar["beamwidth_transmit_major"]), float(sonar["beamwidth_transmit_minor"])]})
+    r = abacus("convert", "twin.mat", "twin.nc", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    settings = processing.resolve_settings(tree)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a = processing.detections_of(processing.detect(tree, settings))
+        b = processing.detections_of(processing.detect(open_tree(tmp_path / "twin.nc"), settings))
+    assert len(a["range_m"]) > 0 and a.sizes == b.sizes
+    for v in ("range_m", "azimuth_rad", "elevation_rad", "amplitude", "snr_db"):
+        np.testing.assert_allclose(a[v].values, b[v].values, rtol=1e-6, atol=1e-9)
+
+
+def test_a_sonar_netcdf4_file_written_with_plain_xarray_is_read(tmp_path):
+    """A conformant file made without abacus' writer (only the variables the contract names,
+    scalars where the standard allows (channel, ping_time)): processing reads it directly and
+    locates the target of the 200 kHz recording."""
+    m = scipy.io.loadmat(_recording(tmp_path / "r.mat", pings=2), squeeze_me=True)
+    x = m["samples"]
+    rep = m["replica"]
+    names = [f"{s}{i % 8}" for i, s in enumerate("A" * 8 + "B" * 8)]
+    bg = xr.Dataset(
+        {"backscatter_r": (("channel", "ping_time", "range_sample", "beam"), x.real.transpose(0, 2, 1)[None].astype("f4")),
+         "backscatter_i": (("channel", "ping_time", "range_sample", "beam"), x.imag.transpose(0, 2, 1)[None].astype("f4")),
+         "sample_interval": (("channel", "ping_time"), np.full((1, 2), 1 / FS)),
+         "blanking_interval": (("channel", "ping_time"), np.full((1, 2), 0.01)),
+         "element_x": ("beam", m["element_xyz"][:, 0]), "element_y": ("beam", m["element_xyz"][:, 1]),
+         "element_z": ("beam", m["element_xyz"][:, 2]), "element_subarray": ("beam", list("A" * 8 + "B" * 8))},
+        coords={"channel": ["rx"], "beam": names, "ping_time": np.array(["2024-01-01T00:00:00", "2024-01-01T00:00:01"],
+                                                                        dtype="datetime64[ns]")})
+    sonar = xr.Dataset({"replica_r": ("replica_sample", rep.real), "replica_i": ("replica_sample", rep.imag),
+                        "transmit_frequency_center": F0, "transmit_bandwidth": B,
+                        "tx_element_x": ("tx_element", m["tx_xyz"][:, 0]), "tx_element_y": ("tx_element", m["tx_xyz"][:, 1]),
+                        "tx_element_z": ("tx_element", m["tx_xyz"][:, 2]), "tx_element_weight": ("tx_element", np.ones(8)),
+                        "beamwidth_transmit_major": 30.0, "beamwidth_transmit_minor": 14.0})
+    xr.DataTree.from_dict({"/": xr.Dataset(attrs={"sonar_convention_name": "SONAR-netCDF4"}),
+                           "/Environment": xr.Dataset({"sound_speed_indicative": C}),
+                           "/Sonar": sonar, "/Sonar/Beam_group1": bg}).to_netcdf(tmp_path / "plain.nc")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        d = processing.detections_of(processing.detect(open_tree(tmp_path / "plain.nc")))
+    i = int(np.argmax(d["amplitude"].values))
+    assert abs(float(d["range_m"][i]) - 18.0) < 0.01 and abs(np.degrees(float(d["azimuth_rad"][i])) - 10.0) < 0.25
+    # and what is missing is named: the transmitter's element weights
+    t = xr.open_datatree(tmp_path / "plain.nc").load()
+    t["Sonar"].dataset = t["Sonar"].to_dataset(inherit=False).drop_vars("tx_element_weight")
+    with pytest.raises(processing.DatasetError, match="tx_element_weight"):
+        processing.detect(t)
