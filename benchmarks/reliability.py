@@ -626,10 +626,24 @@ def run_probe(probe: Probe) -> Result:
         shutil.rmtree(box, ignore_errors=True)
 
 
+def _current_layout(path: Path) -> bool:
+    import xarray as xr
+
+    from processing.dataset import ELEMENT_GROUP
+    try:
+        with xr.open_datatree(path) as t:
+            t[ELEMENT_GROUP]
+        return True
+    except Exception:
+        return False
+
+
 def prepare():
     """A good 1-ping dataset the dataset probes damage, and a warm geometry cache."""
     (CACHE / "boxes").mkdir(parents=True, exist_ok=True)
     good = CACHE / "good.nc"
+    if good.exists() and not _current_layout(good):
+        good.unlink()                   # made by an older abacus: the probes damage today's layout
     if not good.exists():
         (CACHE / "s.yaml").write_text(BASE)
         subprocess.run(ABACUS + ["simulate", str(CACHE / "s.yaml"), "-o", str(good), "--overwrite"],

@@ -77,3 +77,21 @@ def test_an_interrupt_inside_a_compiled_kernel_is_still_an_interrupt(tmp_path):
            "b.command = boom")
     r = abacus("beams", "--json", cwd=tmp_path, pre=pre)
     assert r.returncode == 130 and r.stderr.strip() == "interrupted"
+
+
+def test_an_interrupt_swallowed_by_a_library_still_ends_as_an_interrupt(tmp_path):
+    """matplotlib's drawing code can swallow the KeyboardInterrupt of a SIGINT and fail later
+    with an unrelated error (seen in the reliability probes: 'Invalid bounding box'): the
+    process still ends as interrupted (130), not as an internal error."""
+    pre = ("import acoustics.cli.beams as b\n"
+           "import os, signal\n"
+           "def boom(args):\n"
+           "    try:\n"
+           "        os.kill(os.getpid(), signal.SIGINT)\n"
+           "        import time; time.sleep(1)\n"
+           "    except KeyboardInterrupt:\n"
+           "        pass\n"
+           "    raise ValueError('Invalid bounding box')\n"
+           "b.command = boom")
+    r = abacus("beams", "--json", cwd=tmp_path, pre=pre)
+    assert r.returncode == 130 and r.stderr.strip() == "interrupted"

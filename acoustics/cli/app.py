@@ -100,6 +100,12 @@ def _exit_now(code: int, message: str | None = None):
     os._exit(code)
 
 
+# the signal this process has received, as (exit status, word): a KeyboardInterrupt raised
+# inside C code that swallows it (matplotlib's drawing does) surfaces as an unrelated error
+# with no trace of the signal; the interrupt still decides how the process ends
+_RECEIVED: list = []
+
+
 def _install_signal_handlers():
     """SIGINT raises KeyboardInterrupt and SIGTERM _Terminated in the main thread; a second
     signal, or 5 s without the first one having ended the process, exits at once."""
@@ -118,6 +124,7 @@ def _install_signal_handlers():
         if state["seen"]:
             _exit_now(code, "interrupted")
         state["seen"] = True
+        _RECEIVED.append((code, "interrupted" if signum == signal.SIGINT else "terminated"))
         watchdog(code, "interrupted")
         raise KeyboardInterrupt if signum == signal.SIGINT else _Terminated()
 
@@ -187,7 +194,7 @@ def main(argv=None) -> int:
     except Exception as exc:  # a bug of ours: one line here, the traceback in a log
         # a signal landing inside a compiled (numba) kernel surfaces as a SystemError whose
         # cause is the KeyboardInterrupt / _Terminated our handlers raised: still a signal
-        cause = _signal_cause(exc)
+        cause = _signal_cause(exc) or (_RECEIVED[0] if _RECEIVED else None)
         if cause is not None:
             _exit_now(*cause)
         where = _log_traceback(exc)
