@@ -42,6 +42,15 @@ class SceneMesh:
         The boundary or mesh-target spec it came from.
     key : str
         Its key path in the scene file, for messages.
+    surface : MovingSurface, optional
+        A sea surface that moves between pings (acoustics/paths/sea_surface.py).
+    placement : ndarray, shape (4, 4), optional
+        The surface's frame (world, after the shape's transform) into the sonar frame.
+    normals : ndarray, shape (n_v, 3), optional
+        Unit vertex normals of the smooth surface the mesh samples, when known exactly
+        (sea surfaces); else estimated from the facets where needed.
+    time_s : float
+        The sea's time this mesh shows.
     """
 
     name: str
@@ -50,6 +59,26 @@ class SceneMesh:
     mesh: trimesh.Trimesh
     spec: object
     key: str
+    surface: object = None
+    placement: np.ndarray | None = None
+    normals: np.ndarray | None = None
+    time_s: float = 0.0
+
+    @property
+    def moving(self) -> bool:
+        return self.surface is not None
+
+    def at_time(self, time_s: float) -> "SceneMesh":
+        """This sea surface at sea time ``time_s`` (s); itself when it does not move."""
+        if self.surface is None or time_s == self.time_s:
+            return self
+        v, n = self.surface.grid(time_s)
+        rot, shift = self.placement[:3, :3], self.placement[:3, 3]
+        m = trimesh.Trimesh(v @ rot.T + shift, self.mesh.faces, process=False)
+        n = n @ rot.T
+        n /= np.linalg.norm(n, axis=1)[:, None]
+        return SceneMesh(self.name, self.kind, self.role, m, self.spec, self.key, self.surface,
+                         self.placement, n, float(time_s))
 
     @property
     def plane(self):
@@ -112,6 +141,27 @@ def _rough_floor(spec, seed: int):
     return _grid_mesh(x, y, z)
 
 
+def moving_surface(spec, seed: int = 0):
+    """The :class:`~acoustics.paths.sea_surface.MovingSurface` of a ``wind_sea`` or ``swell``
+    shape (before its transform)."""
+    from acoustics.paths import sea_surface as sea
+    common = dict(center_m=spec.center_m, size_m=spec.size_m, resolution_m=spec.resolution_m,
+                  depth_m=spec.water_depth_m, mean_level_m=spec.mean_level_m)
+    if spec.shape == "wind_sea":
+        return sea.wind_sea(wind_speed_m_s=spec.wind_speed_m_s, direction_deg=spec.direction_deg,
+                            fetch_m=None if spec.fetch_km is None else 1e3 * spec.fetch_km,
+                            spreading=spec.spreading, seed=seed + spec.seed, **common)
+    return sea.swell(components=[(w.amplitude_m, w.wavelength_m, w.direction_deg, w.phase_deg)
+                                 for w in spec.waves], **common)
+
+
+def _transform_matrix(t):
+    mat = np.eye(4)
+    mat[:3, :3] = _rotation(t.rotate_deg) * t.scale
+    mat[:3, 3] = t.translate_m
+    return mat
+
+
 def _load_grid(path: Path):
     if path.suffix.lower() == ".npy":
         return np.load(path)
@@ -166,6 +216,13 @@ def build_mesh(spec, *, name: str, key: str, resolve, seed: int = 0) -> trimesh.
             x = spec.origin_m[0] + np.arange(z.shape[1]) * spec.spacing_m[0]
             y = spec.origin_m[1] + np.arange(z.shape[0]) * spec.spacing_m[1]
             m = _grid_mesh(x, y, z)
+        elif shape in ("wind_sea", "swell"):
+            try:
+                surf = moving_surface(spec, seed)
+            except ValueError as exc:
+                raise MeshError(f"{where}: {exc}") from None
+            v, _ = surf.grid(spec.time_offset_s)
+            m = _grid_mesh(surf.x_m, surf.y_m, v[:, 2].reshape(surf.y_m.size, surf.x_m.size))
         elif shape == "sphere":
             m = trimesh.creation.icosphere(subdivisions=spec.subdivisions, radius=spec.radius_m)
             m.apply_translation(spec.center_m)
@@ -202,13 +259,11 @@ def build_mesh(spec, *, name: str, key: str, resolve, seed: int = 0) -> trimesh.
         raise MeshError(f"{label}: the mesh has non-finite vertex coordinates (NaN or inf)")
     if np.any(m.faces < 0) or np.any(m.faces >= len(v)):
         raise MeshError(f"{label}: faces refer to vertices that do not exist")
-    repaired = _repair(m, label, getattr(spec, "repair", True))
+    # a moving sea keeps its grid's vertex order (it is updated in place every ping)
+    repaired = m if shape in ("wind_sea", "swell") else _repair(m, label, getattr(spec, "repair", True))
     t = spec.transform
     if t.scale != 1.0 or any(t.rotate_deg) or any(t.translate_m):
-        mat = np.eye(4)
-        mat[:3, :3] = _rotation(t.rotate_deg) * t.scale
-        mat[:3, 3] = t.translate_m
-        repaired.apply_transform(mat)
+        repaired.apply_transform(_transform_matrix(t))
     return repaired
 
 
@@ -263,10 +318,16 @@ def scene_meshes(scene, pose: Pose) -> list[SceneMesh]:
                            seed=scene.seed)
         except MeshError as exc:
             raise SceneError(f"{src}: {exc}") from None
+        mat = np.eye(4)
         if spec.frame == "world":
-            mat = np.eye(4)
             mat[:3, :3] = pose.rotation.T
             mat[:3, 3] = -pose.rotation.T @ pose.position_m
             m.apply_transform(mat)
-        out.append(SceneMesh(spec.name, kind, role, m, spec, key))
+        sm = SceneMesh(spec.name, kind, role, m, spec, key)
+        if spec.mesh.shape in ("wind_sea", "swell"):
+            place = mat @ _transform_matrix(spec.mesh.transform)
+            t0 = spec.mesh.time_offset_s
+            sm = SceneMesh(spec.name, kind, role, m, spec, key, moving_surface(spec.mesh, scene.seed),
+                           place, None, np.nan).at_time(t0)
+        out.append(sm)
     return out

@@ -78,6 +78,37 @@ class RayScene:
     _mesh_target_scatterers: VirtualScatterers | None = None
     _mesh_target_view: bytes | None = None
     hit_sample: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    specular: object = None
+    """The scene's ``effects.specular`` settings."""
+    specular_capped: int = 0
+    """Specular paths whose level the focusing limit capped (near a caustic), this run."""
+    last_specular: list = field(default_factory=list)
+    """(mesh index, start, SpecularPoints, visible) of the last ``multipath`` call (views)."""
+    _normal_cache: dict = field(default_factory=dict)
+    time_s: float = 0.0
+
+    # ------------------------------------------------------------------- the sea
+    @property
+    def moving(self) -> bool:
+        """Whether a mesh (a sea surface) moves between pings."""
+        return any(sm.moving for sm in self.meshes)
+
+    def advance(self, time_s: float):
+        """Move every sea surface to sea time ``time_s`` (s after the first ping) and rebuild
+        the caster; what depended on the old geometry is dropped. Nothing happens for a
+        scene whose meshes do not move, or when the time has not changed."""
+        if not self.moving or time_s == self.time_s:
+            return
+        self.meshes = [sm.at_time(sm.spec.mesh.time_offset_s + time_s) if sm.moving else sm
+                       for sm in self.meshes]
+        counts = self.caster.rays_cast
+        self.caster = RayCaster(self.meshes, threads=self.caster.threads)
+        self.caster.rays_cast = counts
+        self._reverb_rays = None
+        self._mesh_target_scatterers = None
+        self._mesh_target_view = None
+        self._normal_cache.clear()
+        self.time_s = float(time_s)
 
     # ---------------------------------------------------------------- occlusion
     def centers(self, view: Pose | None = None):
@@ -117,7 +148,7 @@ class RayScene:
         from each ping's view and the phases drawn anew.
         """
         spec = scene.effects.reverberation
-        if view is None:
+        if view is None and not self.moving:
             if self._reverb_rays is None:
                 self._reverb_rays = self._cast_reverberation_rays(scene, setup, seed)
             pts, amp, n = self._reverb_rays
@@ -125,7 +156,7 @@ class RayScene:
             pts, amp, n = self._cast_reverberation_rays(scene, setup, seed, view)
         if n == 0:
             return VirtualScatterers.empty()
-        if spec.refresh_phase or view is not None:
+        if spec.refresh_phase or view is not None or self.moving:
             phase = ping_rng(seed, ping, "reverberation", 3).uniform(-np.pi, np.pi, n)
         else:
             phase = ping_rng(seed, FIXED, "reverberation", 3).uniform(-np.pi, np.pi, n)
@@ -228,9 +259,104 @@ class RayScene:
             valid &= ~self.caster.occluded(cur, end, purpose="multipath", start_on_surface=True)
         return image, valid, coef
 
+    @property
+    def curved(self) -> list:
+        """Boundaries that reflect and are not planar: their specular paths come from their
+        specular points (acoustics/paths/specular.py), one bounce per leg."""
+        return [i for i, sm in enumerate(self.meshes)
+                if sm.kind == "boundary" and getattr(sm.spec, "reflection", None) is not None
+                and i not in self.planes]
+
+    @property
+    def reflectors(self) -> bool:
+        """Whether any boundary gives specular paths."""
+        return bool(self.planes) or bool(self.curved)
+
+    def _normals(self, i):
+        sm = self.meshes[i]
+        if sm.normals is not None:
+            return sm.normals
+        key = id(sm.mesh)
+        if key not in self._normal_cache:
+            from acoustics.paths.specular import vertex_normals
+            self._normal_cache[key] = vertex_normals(sm.mesh.vertices, sm.mesh.faces)
+        return self._normal_cache[key]
+
+    def specular_legs(self, start, ends):
+        """One-bounce legs from ``start`` to each of ``ends`` off every curved boundary.
+
+        Parameters
+        ----------
+        start : ndarray, shape (3,)
+            A phase centre (m), built frame.
+        ends : ndarray, shape (n, 3)
+            Target positions (m), built frame.
+
+        Returns
+        -------
+        target : ndarray of int, shape (k,)
+        image : ndarray, shape (k, 3)
+            Unfolded images (m), built frame.
+        coefficient : ndarray, shape (k,), complex
+            R(θ) × the curved mirror's divergence factor.
+
+        The bounce points themselves are kept in ``last_specular`` (views, tests).
+        """
+        from acoustics.paths.specular import specular_points
+        tgt, img, coef = [], [], []
+        spec = self.specular
+        for i in self.curved:
+            sm = self.meshes[i]
+            sp = specular_points(sm.mesh.vertices, sm.mesh.faces, self._normals(i),
+                                 np.broadcast_to(start, ends.shape), ends,
+                                 newton_iterations=spec.newton_iterations,
+                                 focusing_limit_db=spec.focusing_limit_db)
+            if not len(sp):
+                continue
+            self.specular_capped += int(sp.capped.sum())
+            # the bounce point must be the first thing on the way in, and the way out clear
+            first = self.caster.first_hit(np.broadcast_to(start, sp.point_m.shape),
+                                          sp.point_m - start, purpose="multipath")
+            near = np.abs(first.distance - sp.source_range_m) <= (
+                10 * self.caster.eps_m + 1e-6 * sp.source_range_m)
+            ok = first.hit & (first.mesh == i) & near
+            ok &= ~self.caster.occluded(sp.point_m, ends[sp.pair], purpose="multipath",
+                                        start_on_surface=True)
+            if not ok.any():
+                continue
+            sel = np.flatnonzero(ok)
+            tgt.append(sp.pair[sel])
+            img.append(sp.image_m[sel])
+            coef.append(self._reflection(i, sp.cos_incidence[sel]) * sp.divergence[sel])
+            self.last_specular.append((i, start, sp, ok))
+        if not tgt:
+            return np.zeros(0, int), np.zeros((0, 3)), np.zeros(0, complex)
+        return np.concatenate(tgt), np.concatenate(img), np.concatenate(coef)
+
+    def _legs(self, start, p, order):
+        """Every leg from ``start`` to the targets ``p``: direct, plane images up to ``order``
+        bounces, one bounce off each curved boundary; as flat rows (target, point, Π R, bounces)."""
+        n = p.shape[0]
+        rows = [(np.arange(n), p, np.ones(n, complex), np.zeros(n, int))]
+        planes = sorted(self.planes)
+        seqs, frontier = [], [()]
+        for _ in range(order if planes else 0):
+            frontier = [s + (b,) for s in frontier for b in planes if not s or s[-1] != b]
+            seqs += frontier
+        for seq in seqs:
+            image, valid, coef = self._unfold(start, p, seq)
+            idx = np.flatnonzero(valid)
+            rows.append((idx, image[idx], coef[idx], np.full(idx.size, len(seq))))
+        if self.curved and order >= 1:
+            t, im, c = self.specular_legs(start, p)
+            rows.append((t, im, c, np.ones(t.size, int)))
+        return tuple(np.concatenate(col) for col in zip(*rows))
+
     def multipath(self, positions_m, strength, order: int,
                   view: Pose | None = None) -> VirtualScatterers:
-        """Specular paths of point targets with up to ``order`` bounces per leg.
+        """Specular paths of point targets: up to ``order`` bounces per leg on planar
+        boundaries (image sources), one bounce per leg on any other reflecting boundary
+        (specular points).
 
         Parameters
         ----------
@@ -245,34 +371,31 @@ class RayScene:
         Returns
         -------
         VirtualScatterers
-            Image points in the ping's sonar frame.
+            Image points in the ping's sonar frame: every pair of a transmit leg and a receive
+            leg of the same target but the direct pair.
         """
         p = _into(view, np.asarray(positions_m, float).reshape(-1, 3))
         q = np.asarray(strength, complex).reshape(-1)
-        planes = sorted(self.planes)
-        if order < 1 or not planes or p.shape[0] == 0:
+        self.last_specular = []
+        if order < 1 or not self.reflectors or p.shape[0] == 0:
             return VirtualScatterers.empty()
-        seqs = [()]
-        frontier = [()]
-        for _ in range(order):
-            frontier = [s + (b,) for s in frontier for b in planes if not s or s[-1] != b]
-            seqs += frontier
         tx_c, rx_c = self.centers(view)
-        legs_tx = {s: self._unfold(tx_c, p, s) for s in seqs}
-        legs_rx = {s: self._unfold(rx_c, p, s) for s in seqs}
-        parts = []
-        for st in seqs:
-            for sr in seqs:
-                if not st and not sr:
-                    continue
-                itx, vtx, ctx = legs_tx[st]
-                irx, vrx, crx = legs_rx[sr]
-                ok = vtx & vrx
-                if ok.any():
-                    parts.append(VirtualScatterers(_out_of(view, itx[ok]), _out_of(view, irx[ok]),
-                                                   q[ok] * ctx[ok] * crx[ok],
-                                                   np.full(int(ok.sum()), "multipath")))
-        return VirtualScatterers.concat(parts)
+        t_tgt, t_pt, t_c, t_nb = self._legs(tx_c, p, order)
+        r_tgt, r_pt, r_c, r_nb = self._legs(rx_c, p, order)
+        # join the legs on the target: every transmit leg with every receive leg
+        o = np.argsort(r_tgt, kind="stable")
+        r_tgt, r_pt, r_c, r_nb = r_tgt[o], r_pt[o], r_c[o], r_nb[o]
+        lo = np.searchsorted(r_tgt, t_tgt, "left")
+        hi = np.searchsorted(r_tgt, t_tgt, "right")
+        cnt = hi - lo
+        ti = np.repeat(np.arange(t_tgt.size), cnt)
+        ri = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi)]) if ti.size else np.zeros(0, int)
+        bounced = (t_nb[ti] + r_nb[ri]) > 0
+        ti, ri = ti[bounced], ri[bounced]
+        if ti.size == 0:
+            return VirtualScatterers.empty()
+        return VirtualScatterers(_out_of(view, t_pt[ti]), _out_of(view, r_pt[ri]),
+                                 q[t_tgt[ti]] * t_c[ti] * r_c[ri], np.full(ti.size, "multipath"))
 
     # -------------------------------------------------------------- mesh targets
     def mesh_targets(self, view: Pose | None = None) -> VirtualScatterers:
@@ -332,10 +455,11 @@ def build_ray_scene(scene, setup, pose=None) -> RayScene | None:
     caster = RayCaster(meshes, threads=scene.effects.ray_threads)
     planes = {}
     for i, sm in enumerate(meshes):
-        if sm.kind == "boundary" and getattr(sm.spec, "reflection", None) is not None:
+        if sm.kind == "boundary" and getattr(sm.spec, "reflection", None) is not None \
+                and not sm.moving:
             pl = sm.plane
             if pl is not None:
                 planes[i] = pl
     rx = setup.sonar.receiver.elements
     return RayScene(meshes, caster, setup.sonar.transmitter.phase_center_m, rx.phase_center_m, planes,
-                    setup.medium, scene.signal.center_frequency_hz)
+                    setup.medium, scene.signal.center_frequency_hz, specular=scene.effects.specular)

@@ -4,7 +4,8 @@ A mesh is a file trimesh reads (OBJ, STL, PLY, GLB, ... — path relative to the
 procedural shape written in the YAML itself, so that scenes stay small in version control:
 ``plane``, ``rough_floor`` (seeded random height field with a Gaussian spectrum, optionally
 sloping), ``height_grid`` (a small .npy or .csv grid of heights), ``sphere``, ``spheroid``,
-``box``. Every mesh takes an optional ``transform`` (scale, then rotate, then translate).
+``box``, and two sea surfaces that move between pings: ``wind_sea`` (a wave spectrum of the wind)
+and ``swell`` (a few travelling sinusoids). Every mesh takes an optional ``transform`` (scale, then rotate, then translate).
 Boundaries live in the world frame by default (z down, the surface at z = 0); mesh targets may use
 either frame.
 """
@@ -18,7 +19,8 @@ from pydantic import Discriminator, Field, Tag, field_validator, model_validator
 from processing.config import (ConfigModel, Count, NonNegativeReal, PositiveCount, PositiveReal,
                                Real, Vec3)
 
-__all__ = ["MeshSpec", "BoundarySpec", "MeshTargetSpec", "ReverberationSpec", "MESH_SUFFIXES"]
+__all__ = ["MeshSpec", "BoundarySpec", "MeshTargetSpec", "ReverberationSpec", "SpecularSpec",
+           "MESH_SUFFIXES"]
 
 #: file types read through trimesh
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off")
@@ -74,6 +76,55 @@ class HeightGridShape(_Shape):
     origin_m: tuple[Real, Real] = (0.0, 0.0)
 
 
+class _MovingSea(_Shape):
+    """A sea surface that moves between pings (acoustics/paths/sea_surface.py): a height field in
+    the world frame, z = mean_level_m − η(x, y, t), t = time_offset_s + the ping's time."""
+
+    center_m: tuple[Real, Real] = (0.0, 0.0)
+    size_m: tuple[PositiveReal, PositiveReal] = (60.0, 60.0)
+    resolution_m: PositiveReal = 0.25
+    """Grid step: the mesh resolution, an accuracy knob (docs/accuracy.md)."""
+    mean_level_m: Real = 0.0
+    """z of the still surface (world frame, z down)."""
+    water_depth_m: PositiveReal | None = None
+    """Depth for the dispersion relation ω² = g k tanh(k d); null: deep water."""
+    time_offset_s: Real = 0.0
+    """The sea's time at the first ping."""
+
+
+class WindSeaShape(_MovingSea):
+    """A wind sea: Pierson–Moskowitz (fully developed) or, with a fetch, JONSWAP; directional
+    spreading cos^2s(Δθ/2); seeded phases."""
+
+    shape: Literal["wind_sea"] = "wind_sea"
+    wind_speed_m_s: PositiveReal = Field(10.0, le=40.0)
+    """U10, the wind speed 10 m above the sea."""
+    direction_deg: Real = 0.0
+    """Direction the waves travel to, from the world x axis towards y."""
+    fetch_km: PositiveReal | None = None
+    """Fetch for JONSWAP; null: the fully developed sea (Pierson–Moskowitz)."""
+    spreading: PositiveReal = 10.0
+    """s of the cos^2s(Δθ/2) directional spreading (larger: longer crests)."""
+    seed: Count = 0
+    """Added to the scene's seed: the same sea at every ping and on every worker."""
+
+
+class SwellWave(ConfigModel):
+    amplitude_m: NonNegativeReal
+    wavelength_m: PositiveReal
+    direction_deg: Real = 0.0
+    """Direction of travel, from the world x axis towards y."""
+    phase_deg: Real = 0.0
+    """Phase of the crest at x = y = 0, t = 0 (0: a crest there)."""
+
+
+class SwellShape(_MovingSea):
+    """A swell: one or a few travelling sinusoids (amplitude, wavelength, direction, phase)."""
+
+    shape: Literal["swell"] = "swell"
+    waves: tuple[SwellWave, ...] = Field(min_length=1, max_length=64)
+
+
 class SphereShape(_Shape):
     shape: Literal["sphere"] = "sphere"
     center_m: Vec3 = (0.0, 0.0, 0.0)
@@ -119,6 +170,8 @@ MeshSpec = Annotated[Union[Annotated[PlaneShape, Tag("plane")],
                            Annotated[SphereShape, Tag("sphere")],
                            Annotated[SpheroidShape, Tag("spheroid")],
                            Annotated[BoxShape, Tag("box")],
+                           Annotated[WindSeaShape, Tag("wind_sea")],
+                           Annotated[SwellShape, Tag("swell")],
                            Annotated[FileShape, Tag("file")]],
                      Discriminator("shape")]
 
@@ -153,7 +206,11 @@ Reflection = Annotated[Union[Annotated[ConstantReflection, Tag("constant")],
 
 
 class BoundarySpec(ConfigModel):
-    """A boundary mesh (sea surface, sea floor, rock) and its acoustics."""
+    """A boundary mesh (sea surface, sea floor, rock) and its acoustics.
+
+    Specular paths: planar meshes by image sources (up to ``effects.multipath_order`` bounces
+    per leg); any other mesh by its specular points (one bounce per leg,
+    acoustics/paths/specular.py)."""
 
     name: str = Field(min_length=1)
     role: Literal["surface", "floor", "obstacle"] = "floor"
@@ -179,6 +236,13 @@ class BoundarySpec(ConfigModel):
                                       "obstacle": {"model": "constant", "coefficient": 1.0}}.get(role)
         return data
 
+    @model_validator(mode="after")
+    def _moving_sea_in_world(self):
+        if self.mesh.shape in ("wind_sea", "swell") and self.frame != "world":
+            raise ValueError(f"a {self.mesh.shape} surface lives in the world frame (z down): "
+                             f"set frame: world")
+        return self
+
 
 class MeshTargetSpec(ConfigModel):
     """A target whose echo comes from its geometry: the physical-optics (Kirchhoff) integral
@@ -188,6 +252,12 @@ class MeshTargetSpec(ConfigModel):
     frame: Literal["world", "sonar"] = "world"
     mesh: MeshSpec
     boundary: Literal["rigid", "pressure_release"] = "rigid"
+
+    @model_validator(mode="after")
+    def _no_moving_sea(self):
+        if self.mesh.shape in ("wind_sea", "swell"):
+            raise ValueError(f"a {self.mesh.shape} is a sea surface: put it under boundaries")
+        return self
 
 
 class ReverberationSpec(ConfigModel):
@@ -205,3 +275,14 @@ class ReverberationSpec(ConfigModel):
     static geometry."""
     max_range_m: PositiveReal | None = None
     """Ignore hits beyond this range; default the end of the record."""
+
+
+class SpecularSpec(ConfigModel):
+    """Specular paths off curved boundaries (acoustics/paths/specular.py)."""
+
+    newton_iterations: Count = Field(8, le=50)
+    """Refinement of each bounce point on the smooth surface the mesh samples (0: the linear
+    estimate on its facet): an accuracy knob (docs/accuracy.md)."""
+    focusing_limit_db: Real = Field(20.0, ge=0.0, le=60.0)
+    """Largest gain of a curved mirror over a flat one (dB): geometrical optics diverges at a
+    caustic; paths held at the limit are counted in the run record."""

@@ -19,7 +19,7 @@ import numpy as np
 from pydantic import Field, PrivateAttr, model_validator
 
 from acoustics.medium import francois_garrison_db_per_m, mackenzie_sound_speed_m_s
-from acoustics.scene.meshes_spec import BoundarySpec, ReverberationSpec
+from acoustics.scene.meshes_spec import BoundarySpec, ReverberationSpec, SpecularSpec
 from acoustics.scene.sonar_spec import SonarSpec
 from acoustics.scene.targets_spec import TargetsSpec
 from acoustics.sonar import preset
@@ -174,7 +174,9 @@ class EffectsSpec(ConfigModel):
     with meshes in the scene)."""
     multipath_order: Count = Field(0, le=3)
     """Specular bounces per leg on planar boundaries (0: none; 1: Tx→boundary→target→Rx,
-    Tx→target→boundary→Rx and both)."""
+    Tx→target→boundary→Rx and both); any order ≥ 1 adds one bounce per leg off curved
+    boundaries (a wavy sea: their specular points)."""
+    specular: SpecularSpec = SpecularSpec()
     reverberation: ReverberationSpec = ReverberationSpec()
     doppler: bool = False
     """Echoes of moving targets (and of any target seen from a moving platform) carry their

@@ -66,6 +66,9 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
             targets = swimbladder_backscatter(scene, targets, ping, pose, seed)
     strength = targets.rho_m * np.exp(1j * targets.phase_rad)
     rs, view = setup.ray_scene_at(scene, pose, log)
+    if rs is not None and rs.moving:
+        with log.stage("sea_surface"):
+            rs.advance(ping * setup.interval_s)
     shadowed = np.zeros(len(targets), bool)
     if rs is not None and fx.occlusion and len(targets):
         with log.stage("occlusion"):
@@ -78,7 +81,7 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
                                              targets.position_world_m, setup.medium.sound_speed_m_s)
     parts = [VirtualScatterers(targets.position_sonar_m[direct], p_rx[direct],
                                strength[direct], np.full(int(direct.sum()), "direct"))]
-    if rs is not None and fx.multipath_order > 0 and rs.planes and len(targets):
+    if rs is not None and fx.multipath_order > 0 and rs.reflectors and len(targets):
         with log.stage("multipath"):
             parts.append(rs.multipath(targets.position_sonar_m, strength, fx.multipath_order, view))
     if rs is not None and scene.targets.meshes:

@@ -1,0 +1,345 @@
+"""Specular points: where a path from a source to a receiver bounces once off a curved mesh.
+
+A one-bounce path S → X → P off a smooth surface is stationary in its length φ(X) = |X − S| +
+|X − P| (Fermat): at X the bisector b = ê_S + ê_P of the two unit legs (ê_Q = (X − Q)/|X − Q|)
+lies along the surface normal — the law of reflection. The mesh is read as a sampled smooth
+surface: positions on its flat facets, normals interpolated from its vertex normals (Phong), so
+that the normal field, and with it the surface's curvature, varies smoothly across facets.
+
+**Search** (every stationary point, no ray density to tune). For each source–receiver pair the
+tangential part of b is evaluated at every vertex; on a facet whose three vertex values can
+vanish under linear interpolation, the zero is solved for and refined by Newton's method on the
+smooth surface, with the analytic Hessian below. Points found from two facets are merged.
+A fan of rays would find the same points only to within its spacing and can miss glints
+between its rays; this search is exhaustive over facets and costs O(pairs × facets) in a compiled
+loop (docs/performance.md: 10⁵ facets).
+
+**Level** — geometrical optics through the stationary-phase evaluation of the Kirchhoff
+integral p = (jk/2π) R ∫ cos θ e^{−jkφ}/(r_S r_P) dS (docs/conventions.md: e^{+jωt},
+p = f e^{−jkr}/r). With H the Hessian of φ in an orthonormal tangent frame at X,
+
+    H_ab = Σ_Q [δ_ab − (t_a·ê_Q)(t_b·ê_Q)] / r_Q + (b·n̂) II_ab,
+
+(II the second fundamental form), the reflected field is
+
+    p = R cos θ e^{jπ(2 − σ)/4} e^{−jkφ} / (r_S r_P √|det H|),
+
+σ the signature of H (2 at an ordinary mirror point, 0 at a saddle, −2 past a focus). A flat
+surface gives det H = cos²θ (r_S + r_P)² / (r_S r_P)², hence p = R e^{−jkφ}/(r_S + r_P): the image
+source. A convex cylinder of radius ρ, the plane of incidence across its axis, gives
+p = R / √((r_S + r_P)(r_S + r_P + 2 r_S r_P/(ρ cos θ))), the mirror equation (Kinsler et al.,
+*Fundamentals of Acoustics*; Deschamps 1972, "Ray techniques in electromagnetics", Proc. IEEE
+60(9)). The path is returned *unfolded*: an image point on the ray from S through X at the
+distance r_S + r_P, with the factor A = p (r_S + r_P) e^{+jkφ} that turns the image's spreading
+1/(r_S + r_P) into the curved mirror's. Near a caustic (det H → 0) geometrical optics diverges;
+|A| is capped at ``focusing_limit_db`` and the capped paths are counted.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+__all__ = ["SpecularPoints", "specular_points", "vertex_normals"]
+
+
+@dataclass(frozen=True)
+class SpecularPoints:
+    """One-bounce paths, one row per path, as flat arrays with an index column.
+
+    Attributes
+    ----------
+    pair : ndarray of int, shape (k,)
+        Index of the source–receiver pair.
+    face : ndarray of int, shape (k,)
+        Facet the bounce point lies on.
+    point_m : ndarray, shape (k, 3)
+        Bounce point X (m), on the mesh.
+    normal : ndarray, shape (k, 3)
+        Unit surface normal at X, on the side of the source and receiver.
+    source_range_m, receiver_range_m : ndarray, shape (k,)
+        r_S = |X − S| and r_P = |X − P| (m).
+    cos_incidence : ndarray, shape (k,)
+        cos θ, θ the angle of incidence from the normal.
+    image_m : ndarray, shape (k, 3)
+        The unfolded image: S + (r_S + r_P) (X − S)/r_S (m).
+    divergence : ndarray, shape (k,), complex
+        A = p (r_S + r_P) e^{+jkφ} / R: the curved mirror's field over the image source's,
+        reflection coefficient not included (1 on a plane).
+    signature : ndarray of int, shape (k,)
+        σ of the Hessian: 2, 0 or −2.
+    capped : ndarray of bool, shape (k,)
+        |A| was limited at the focusing limit (a caustic is near).
+    """
+
+    pair: np.ndarray
+    face: np.ndarray
+    point_m: np.ndarray
+    normal: np.ndarray
+    source_range_m: np.ndarray
+    receiver_range_m: np.ndarray
+    cos_incidence: np.ndarray
+    image_m: np.ndarray
+    divergence: np.ndarray
+    signature: np.ndarray
+    capped: np.ndarray
+
+    def __len__(self):
+        return int(self.pair.shape[0])
+
+    @classmethod
+    def empty(cls):
+        z3 = np.zeros((0, 3))
+        z = np.zeros(0)
+        return cls(np.zeros(0, int), np.zeros(0, int), z3, z3.copy(), z, z.copy(), z.copy(),
+                   z3.copy(), np.zeros(0, complex), np.zeros(0, int), np.zeros(0, bool))
+
+
+def vertex_normals(vertices, faces):
+    """Unit vertex normals (n_v, 3): the area-weighted mean of the adjacent facets' normals.
+
+    Parameters
+    ----------
+    vertices : array_like, shape (n_v, 3)
+    faces : array_like of int, shape (n_f, 3)
+    """
+    v = np.asarray(vertices, float)
+    f = np.asarray(faces, np.int64)
+    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])   # |.| = 2 × area
+    out = np.zeros_like(v)
+    for j in range(3):
+        np.add.at(out, f[:, j], fn)
+    norm = np.linalg.norm(out, axis=1)
+    return out / np.where(norm > 0, norm, 1.0)[:, None]
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _tangential(V, N, S, P, out):
+    """Tangential part of the bisector b = ê_S + ê_P at every vertex."""
+    for v in range(V.shape[0]):
+        bx = by = bz = 0.0
+        for q in range(2):
+            Q = S if q == 0 else P
+            dx, dy, dz = V[v, 0] - Q[0], V[v, 1] - Q[1], V[v, 2] - Q[2]
+            r = np.sqrt(dx * dx + dy * dy + dz * dz)
+            if r > 0.0:
+                bx += dx / r
+                by += dy / r
+                bz += dz / r
+        bn = bx * N[v, 0] + by * N[v, 1] + bz * N[v, 2]
+        out[v, 0] = bx - bn * N[v, 0]
+        out[v, 1] = by - bn * N[v, 1]
+        out[v, 2] = bz - bn * N[v, 2]
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _candidates(V, F, N, S, P, tol, cap, out_pair, out_face, out_st):
+    """Facets on which the linearly interpolated tangential bisector vanishes, for every pair;
+    returns the number found (rows past ``cap`` are counted, not written)."""
+    tang = np.empty((V.shape[0], 3))
+    k = 0
+    for j in range(S.shape[0]):
+        _tangential(V, N, S[j], P[j], tang)
+        for f in range(F.shape[0]):
+            a, b, c = F[f, 0], F[f, 1], F[f, 2]
+            e1x, e1y, e1z = V[b, 0] - V[a, 0], V[b, 1] - V[a, 1], V[b, 2] - V[a, 2]
+            e2x, e2y, e2z = V[c, 0] - V[a, 0], V[c, 1] - V[a, 1], V[c, 2] - V[a, 2]
+            l1 = np.sqrt(e1x * e1x + e1y * e1y + e1z * e1z)
+            if l1 == 0.0:
+                continue
+            u1x, u1y, u1z = e1x / l1, e1y / l1, e1z / l1
+            d = e2x * u1x + e2y * u1y + e2z * u1z
+            wx, wy, wz = e2x - d * u1x, e2y - d * u1y, e2z - d * u1z
+            l2 = np.sqrt(wx * wx + wy * wy + wz * wz)
+            if l2 == 0.0:
+                continue
+            u2x, u2y, u2z = wx / l2, wy / l2, wz / l2
+            # the three vertex residuals in the facet's basis
+            pa0 = tang[a, 0] * u1x + tang[a, 1] * u1y + tang[a, 2] * u1z
+            pb0 = tang[b, 0] * u1x + tang[b, 1] * u1y + tang[b, 2] * u1z
+            pc0 = tang[c, 0] * u1x + tang[c, 1] * u1y + tang[c, 2] * u1z
+            lo = min(pa0, pb0, pc0)
+            hi = max(pa0, pb0, pc0)
+            span = hi - lo
+            if lo > tol * span or hi < -tol * span:
+                continue
+            pa1 = tang[a, 0] * u2x + tang[a, 1] * u2y + tang[a, 2] * u2z
+            pb1 = tang[b, 0] * u2x + tang[b, 1] * u2y + tang[b, 2] * u2z
+            pc1 = tang[c, 0] * u2x + tang[c, 1] * u2y + tang[c, 2] * u2z
+            lo1 = min(pa1, pb1, pc1)
+            hi1 = max(pa1, pb1, pc1)
+            span1 = hi1 - lo1
+            if lo1 > tol * span1 or hi1 < -tol * span1:
+                continue
+            m00, m01 = pb0 - pa0, pc0 - pa0
+            m10, m11 = pb1 - pa1, pc1 - pa1
+            det = m00 * m11 - m01 * m10
+            if det == 0.0:
+                continue
+            s = (-pa0 * m11 + pa1 * m01) / det
+            t = (-pa1 * m00 + pa0 * m10) / det
+            if s < -tol or t < -tol or s + t > 1.0 + tol:
+                continue
+            if k < cap:
+                out_pair[k] = j
+                out_face[k] = f
+                out_st[k, 0] = s
+                out_st[k, 1] = t
+            k += 1
+    return k
+
+
+def _unit(x):
+    n = np.linalg.norm(x, axis=-1, keepdims=True)
+    return x / np.where(n > 0, n, 1.0)
+
+
+def _geometry(V, F, N, face, st, S, P):
+    """Point, normal, tangents, Hessian and gradient on the smooth surface of each candidate."""
+    a, b, c = V[F[face, 0]], V[F[face, 1]], V[F[face, 2]]
+    e = np.stack([b - a, c - a], axis=1)                               # (k, 2, 3)
+    na, nb_, nc = N[F[face, 0]], N[F[face, 1]], N[F[face, 2]]
+    dn = np.stack([nb_ - na, nc - na], axis=1)                          # (k, 2, 3)
+    x = a + st[:, :1] * e[:, 0] + st[:, 1:] * e[:, 1]
+    nu = na + st[:, :1] * dn[:, 0] + st[:, 1:] * dn[:, 1]
+    nlen = np.linalg.norm(nu, axis=1)
+    n = nu / np.where(nlen > 0, nlen, 1.0)[:, None]
+    tan = e - np.einsum("kaj,kj->ka", e, n)[..., None] * n[:, None, :]   # tangents T_a
+    dnu = (dn - np.einsum("kaj,kj->ka", dn, n)[..., None] * n[:, None, :]) / np.where(
+        nlen > 0, nlen, 1.0)[:, None, None]                            # ∂n/∂u_a
+    ii = -0.5 * (np.einsum("kaj,kbj->kab", dnu, tan) + np.einsum("kbj,kaj->kab", dnu, tan))
+    legs = []
+    bis = np.zeros_like(x)
+    hess = np.zeros((x.shape[0], 2, 2))
+    gram = np.einsum("kaj,kbj->kab", tan, tan)
+    for q in (S, P):
+        d = x - q
+        r = np.linalg.norm(d, axis=1)
+        u = d / np.where(r > 0, r, 1.0)[:, None]
+        legs.append((r, u))
+        bis += u
+        tu = np.einsum("kaj,kj->ka", tan, u)
+        hess += (gram - tu[:, :, None] * tu[:, None, :]) / np.where(r > 0, r, np.inf)[:, None, None]
+    bn = np.einsum("kj,kj->k", bis, n)
+    hess += bn[:, None, None] * ii
+    grad = np.einsum("kaj,kj->ka", tan, bis)
+    return x, n, tan, hess, grad, legs, bn
+
+
+def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenumber=None,
+                    newton_iterations: int = 8, focusing_limit_db: float = 20.0,
+                    search_tolerance: float = 0.1) -> SpecularPoints:
+    """Every one-bounce specular path off a mesh for each source–receiver pair.
+
+    Parameters
+    ----------
+    vertices : array_like, shape (n_v, 3)
+        Mesh vertices (m).
+    faces : array_like of int, shape (n_f, 3)
+    normals : array_like, shape (n_v, 3)
+        Unit vertex normals of the smooth surface the mesh samples (:func:`vertex_normals`
+        when only the mesh is known).
+    sources_m, receivers_m : array_like, shape (m, 3)
+        The pairs' end points (m).
+    wavenumber : float, optional
+        Unused by geometry; accepted for symmetry with callers that pass it.
+    newton_iterations : int
+        Refinement steps on the smooth surface (0: the linear estimate on the facet).
+    focusing_limit_db : float
+        Largest |A| (dB) a path may have; geometrical optics diverges at a caustic.
+    search_tolerance : float
+        Facets are searched this fraction beyond their edges (points found twice are merged).
+
+    Returns
+    -------
+    SpecularPoints
+        Rows sorted by pair, then path length.
+    """
+    V = np.ascontiguousarray(np.asarray(vertices, float))
+    F = np.ascontiguousarray(np.asarray(faces, np.int64))
+    N = np.ascontiguousarray(_unit(np.asarray(normals, float)))
+    S = np.ascontiguousarray(np.asarray(sources_m, float).reshape(-1, 3))
+    P = np.ascontiguousarray(np.asarray(receivers_m, float).reshape(-1, 3))
+    if S.shape != P.shape:
+        raise ValueError("sources_m and receivers_m must have the same shape (m, 3)")
+    if S.shape[0] == 0 or F.shape[0] == 0:
+        return SpecularPoints.empty()
+    if not (np.all(np.isfinite(S)) and np.all(np.isfinite(P))):
+        raise ValueError("specular_points: sources and receivers must be finite")
+    cap = max(64, 8 * S.shape[0])
+    while True:
+        pair = np.empty(cap, np.int64)
+        face = np.empty(cap, np.int64)
+        st = np.empty((cap, 2))
+        k = _candidates(V, F, N, S, P, search_tolerance, cap, pair, face, st)
+        if k <= cap:
+            break
+        cap = k
+    pair, face, st = pair[:k], face[:k], st[:k]
+    Sq, Pq = S[pair], P[pair]
+    for _ in range(newton_iterations):
+        x, n, tan, hess, grad, legs, bn = _geometry(V, F, N, face, st, Sq, Pq)
+        det = hess[:, 0, 0] * hess[:, 1, 1] - hess[:, 0, 1] * hess[:, 1, 0]
+        ok = np.abs(det) > 0
+        safe = np.where(ok, det, 1.0)
+        ds = -(hess[:, 1, 1] * grad[:, 0] - hess[:, 0, 1] * grad[:, 1]) / safe
+        dt = -(-hess[:, 1, 0] * grad[:, 0] + hess[:, 0, 0] * grad[:, 1]) / safe
+        step = np.column_stack([np.where(ok, ds, 0.0), np.where(ok, dt, 0.0)])
+        # never farther than the facet's own size per step: Newton from a poor start must not
+        # jump to another sheet of the surface
+        big = np.max(np.abs(step), axis=1)
+        st = st + step / np.maximum(1.0, big)[:, None]
+        if np.all(big < 1e-12):
+            break
+    x, n, tan, hess, grad, legs, bn = _geometry(V, F, N, face, st, Sq, Pq)
+    (r_s, u_s), (r_p, u_p) = legs
+    eps = 1e-6
+    inside = (st[:, 0] >= -eps) & (st[:, 1] >= -eps) & (st[:, 0] + st[:, 1] <= 1 + eps)
+    # the law of reflection holds (the residual is a sine: |b_t| / |b|) ...
+    bnorm = np.linalg.norm(u_s + u_p, axis=1)
+    resid = np.linalg.norm((u_s + u_p) - bn[:, None] * n, axis=1) / np.where(bnorm > 0, bnorm, 1.0)
+    # ... source and receiver on the same side, off the surface
+    cs, cp = -np.einsum("kj,kj->k", u_s, n), -np.einsum("kj,kj->k", u_p, n)
+    same_side = (cs * cp > 0) & (r_s > 0) & (r_p > 0)
+    keep = inside & same_side & (resid < 1e-6) & np.all(np.isfinite(x), axis=1)
+    if newton_iterations == 0:
+        keep = inside & same_side & np.all(np.isfinite(x), axis=1)
+    idx = np.flatnonzero(keep)
+    if idx.size == 0:
+        return SpecularPoints.empty()
+    # merge points found from neighbouring facets (same pair, same point)
+    scale = np.linalg.norm(V[F[face[idx], 1]] - V[F[face[idx], 0]], axis=1)
+    order = np.lexsort((r_s[idx] + r_p[idx], pair[idx]))
+    idx, scale = idx[order], scale[order]
+    uniq = []
+    for i, j in enumerate(idx):
+        dup = False
+        for u in uniq[-8:]:
+            if pair[u] == pair[j] and np.linalg.norm(x[u] - x[j]) < 1e-3 * scale[i] + 1e-9:
+                dup = True
+                break
+        if not dup:
+            uniq.append(j)
+    idx = np.asarray(uniq, int)
+    sign = np.where(cs[idx] > 0, 1.0, -1.0)
+    nrm = n[idx] * sign[:, None]
+    cos_inc = np.abs(cs[idx])
+    h = hess[idx]
+    # orthonormal-frame determinant: det(H_param) / |T1 × T2|²
+    area = np.linalg.norm(np.cross(tan[idx, 0], tan[idx, 1]), axis=1)
+    det_param = h[:, 0, 0] * h[:, 1, 1] - h[:, 0, 1] * h[:, 1, 0]
+    tr = h[:, 0, 0] + h[:, 1, 1]
+    sig = np.where(det_param < 0, 0, np.where(tr > 0, 2, -2))
+    rs, rp = r_s[idx], r_p[idx]
+    total = rs + rp
+    root = np.sqrt(np.abs(det_param)) / np.where(area > 0, area, 1.0)
+    limit = 10.0 ** (focusing_limit_db / 20.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mag = cos_inc * total / (rs * rp * root)
+    capped = ~(mag <= limit)
+    mag = np.where(capped, limit, mag)
+    div = mag * np.exp(1j * np.pi * (2 - sig) / 4)
+    image = S[pair[idx]] + (total / rs)[:, None] * (x[idx] - S[pair[idx]])
+    return SpecularPoints(pair[idx], face[idx], x[idx], nrm, rs, rp, cos_inc, image, div,
+                          sig.astype(int), capped)
