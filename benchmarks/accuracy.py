@@ -776,5 +776,9 @@ def motion_substeps():
               "turning once per step): the table says how far they stray from the continuous one.\n")
 
 
+import _accuracy_sea  # noqa: E402  (the wavy sea's sections, in their own module)
+
+_accuracy_sea.register(knob)
+
 if __name__ == "__main__":
     REPORT.main()

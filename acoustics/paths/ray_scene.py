@@ -307,20 +307,30 @@ class RayScene:
         spec = self.specular
         for i in self.curved:
             sm = self.meshes[i]
+            exact = None
+            if sm.moving and spec.exact_surface:
+                t_sea = sm.time_s
+                exact = (lambda x, y, _s=sm.surface, _t=t_sea: _s.height(x, y, _t), sm.placement)
             sp = specular_points(sm.mesh.vertices, sm.mesh.faces, self._normals(i),
                                  np.broadcast_to(start, ends.shape), ends,
                                  newton_iterations=spec.newton_iterations,
-                                 focusing_limit_db=spec.focusing_limit_db)
+                                 focusing_limit_db=spec.focusing_limit_db, height_field=exact)
             if not len(sp):
                 continue
-            self.specular_capped += int(sp.capped.sum())
+            if sp.capped.any():
+                # recorded with the run's ray counts (Provenance rays_cast_json)
+                self.specular_capped += int(sp.capped.sum())
+                self.caster._count("specular_capped_paths", int(sp.capped.sum()))
             # the bounce point must be the first thing on the way in, and the way out clear
-            first = self.caster.first_hit(np.broadcast_to(start, sp.point_m.shape),
-                                          sp.point_m - start, purpose="multipath")
-            near = np.abs(first.distance - sp.source_range_m) <= (
-                10 * self.caster.eps_m + 1e-6 * sp.source_range_m)
+            # (the bounce point's foot on the facet: the smooth surface may be off it by its sag)
+            foot = sp.mesh_point_m
+            reach = np.linalg.norm(foot - start, axis=1)
+            first = self.caster.first_hit(np.broadcast_to(start, foot.shape), foot - start,
+                                          purpose="multipath")
+            # (1 mm per metre: the exact surface's point may lie on a neighbouring facet)
+            near = np.abs(first.distance - reach) <= 10 * self.caster.eps_m + 1e-3 * reach
             ok = first.hit & (first.mesh == i) & near
-            ok &= ~self.caster.occluded(sp.point_m, ends[sp.pair], purpose="multipath",
+            ok &= ~self.caster.occluded(foot, ends[sp.pair], purpose="multipath",
                                         start_on_surface=True)
             if not ok.any():
                 continue

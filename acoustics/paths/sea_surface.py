@@ -146,6 +146,34 @@ class MovingSurface:
             ey -= s @ ky
         return eta, ex, ey
 
+    def height(self, x_m, y_m, time_s: float):
+        """The surface z(x, y) (m, world frame, z down) and its derivatives at time t.
+
+        Returns
+        -------
+        tuple of ndarray
+            z, z_x, z_y, z_xx, z_xy, z_yy, each shaped like ``x_m``.
+        """
+        x = np.asarray(x_m, float)
+        y = np.asarray(y_m, float)
+        shape = np.broadcast(x, y).shape
+        out = [np.zeros(shape) for _ in range(6)]
+        kx, ky, a = self.k_m[:, 0], self.k_m[:, 1], self.amplitude_m
+        for lo in range(0, a.size, 256):
+            sl = slice(lo, lo + 256)
+            arg = (x[..., None] * kx[sl] + y[..., None] * ky[sl] - self.omega_rad_s[sl] * time_s
+                   + self.phase_rad[sl])
+            c, s_ = np.cos(arg) * a[sl], np.sin(arg) * a[sl]
+            # z = L − η: z_x = a k_x sin, z_xx = a k_x² cos, ...
+            out[0] -= c.sum(-1)
+            out[1] += s_ @ kx[sl]
+            out[2] += s_ @ ky[sl]
+            out[3] += c @ (kx[sl] * kx[sl])
+            out[4] += c @ (kx[sl] * ky[sl])
+            out[5] += c @ (ky[sl] * ky[sl])
+        out[0] += self.mean_level_m
+        return tuple(out)
+
     def grid(self, time_s: float):
         """Vertices (ny·nx, 3) and unit normals (ny·nx, 3) pointing up (−z) at time t; the
         vertex order of :func:`acoustics.paths.meshes._grid_mesh`."""

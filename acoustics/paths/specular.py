@@ -71,6 +71,9 @@ class SpecularPoints:
         σ of the Hessian: 2, 0 or −2.
     capped : ndarray of bool, shape (k,)
         |A| was limited at the focusing limit (a caustic is near).
+    mesh_point_m : ndarray, shape (k, 3)
+        X's foot on the facet itself (m): where rays meet the mesh (visibility checks);
+        ``point_m`` is on the smooth surface, off the facet by at most its sag.
     """
 
     pair: np.ndarray
@@ -84,6 +87,7 @@ class SpecularPoints:
     divergence: np.ndarray
     signature: np.ndarray
     capped: np.ndarray
+    mesh_point_m: np.ndarray
 
     def __len__(self):
         return int(self.pair.shape[0])
@@ -93,7 +97,7 @@ class SpecularPoints:
         z3 = np.zeros((0, 3))
         z = np.zeros(0)
         return cls(np.zeros(0, int), np.zeros(0, int), z3, z3.copy(), z, z.copy(), z.copy(),
-                   z3.copy(), np.zeros(0, complex), np.zeros(0, int), np.zeros(0, bool))
+                   z3.copy(), np.zeros(0, complex), np.zeros(0, int), np.zeros(0, bool), z3.copy())
 
 
 def vertex_normals(vertices, faces):
@@ -201,7 +205,15 @@ def _geometry(V, F, N, face, st, S, P):
     e = np.stack([b - a, c - a], axis=1)                               # (k, 2, 3)
     na, nb_, nc = N[F[face, 0]], N[F[face, 1]], N[F[face, 2]]
     dn = np.stack([nb_ - na, nc - na], axis=1)                          # (k, 2, 3)
-    x = a + st[:, :1] * e[:, 0] + st[:, 1:] * e[:, 1]
+    flat = a + st[:, :1] * e[:, 0] + st[:, 1:] * e[:, 1]
+    # Phong tessellation with α = ½ (Boubekeur & Alexa 2008): the mean of the projections onto
+    # the vertices' tangent planes lifts the facet to the smooth surface — on a circle of radius
+    # R it puts the chord's midpoint at the arc (sag d²/8R) to second order
+    bary = np.column_stack([1 - st[:, 0] - st[:, 1], st[:, 0], st[:, 1]])
+    lift = np.zeros_like(flat)
+    for i, (v, nv) in enumerate(((a, na), (b, nb_), (c, nc))):
+        lift -= 0.5 * bary[:, i:i + 1] * np.einsum("kj,kj->k", flat - v, nv)[:, None] * nv
+    x = flat + lift
     nu = na + st[:, :1] * dn[:, 0] + st[:, 1:] * dn[:, 1]
     nlen = np.linalg.norm(nu, axis=1)
     n = nu / np.where(nlen > 0, nlen, 1.0)[:, None]
@@ -224,12 +236,48 @@ def _geometry(V, F, N, face, st, S, P):
     bn = np.einsum("kj,kj->k", bis, n)
     hess += bn[:, None, None] * ii
     grad = np.einsum("kaj,kj->ka", tan, bis)
-    return x, n, tan, hess, grad, legs, bn
+    return x, n, tan, hess, grad, legs, bn, flat
+
+
+def _height_field_geometry(hf, xy, S, P):
+    """As :func:`_geometry` on an exact height field z(x, y) (its own frame): point, normal,
+    tangents X_x, X_y, Hessian of φ in (x, y), gradient, legs, b·n."""
+    z, zx, zy, zxx, zxy, zyy = hf(xy[:, 0], xy[:, 1])
+    x = np.column_stack([xy, z])
+    one, nil = np.ones_like(z), np.zeros_like(z)
+    tan = np.stack([np.column_stack([one, nil, zx]), np.column_stack([nil, one, zy])], axis=1)
+    n = _unit(np.column_stack([-zx, -zy, one]))
+    legs, bis = [], np.zeros_like(x)
+    gram = np.einsum("kaj,kbj->kab", tan, tan)
+    hess = np.zeros((x.shape[0], 2, 2))
+    for q in (S, P):
+        d = x - q
+        r = np.linalg.norm(d, axis=1)
+        u = d / np.where(r > 0, r, 1.0)[:, None]
+        legs.append((r, u))
+        bis += u
+        tu = np.einsum("kaj,kj->ka", tan, u)
+        hess += (gram - tu[:, :, None] * tu[:, None, :]) / np.where(r > 0, r, np.inf)[:, None, None]
+    # exact second derivative: Σ ê·X_ab = b_z z_ab (X_ab = (0, 0, z_ab))
+    hess += bis[:, 2, None, None] * np.stack([np.stack([zxx, zxy], -1), np.stack([zxy, zyy], -1)], 1)
+    grad = np.einsum("kaj,kj->ka", tan, bis)
+    return x, n, tan, hess, grad, legs, np.einsum("kj,kj->k", bis, n)
+
+
+def _inside_xy(tri_xy, xy, eps):
+    """Whether points lie in triangles' (x, y) projections; and the barycentric (s, t)."""
+    a, b, c = tri_xy[:, 0], tri_xy[:, 1], tri_xy[:, 2]
+    e1, e2, d = b - a, c - a, xy - a
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    det = np.where(det != 0, det, 1.0)
+    s = (d[:, 0] * e2[:, 1] - d[:, 1] * e2[:, 0]) / det
+    t = (e1[:, 0] * d[:, 1] - e1[:, 1] * d[:, 0]) / det
+    return (s >= -eps) & (t >= -eps) & (s + t <= 1 + eps), np.column_stack([s, t])
 
 
 def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenumber=None,
                     newton_iterations: int = 8, focusing_limit_db: float = 20.0,
-                    search_tolerance: float = 0.1) -> SpecularPoints:
+                    search_tolerance: float = 0.1, height_field=None) -> SpecularPoints:
     """Every one-bounce specular path off a mesh for each source–receiver pair.
 
     Parameters
@@ -250,6 +298,11 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
         Largest |A| (dB) a path may have; geometrical optics diverges at a caustic.
     search_tolerance : float
         Facets are searched this fraction beyond their edges (points found twice are merged).
+    height_field : (callable, ndarray (4, 4)), optional
+        The exact surface the mesh samples, as ``z, z_x, z_y, z_xx, z_xy, z_yy = f(x, y)`` in
+        its own frame, and the rigid placement of that frame in the mesh's. Bounce points are
+        then refined, and their levels taken, on it (the mesh only finds them and, with its
+        facets, decides visibility): exact at any mesh resolution.
 
     Returns
     -------
@@ -278,31 +331,67 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
         cap = k
     pair, face, st = pair[:k], face[:k], st[:k]
     Sq, Pq = S[pair], P[pair]
-    for _ in range(newton_iterations):
-        x, n, tan, hess, grad, legs, bn = _geometry(V, F, N, face, st, Sq, Pq)
-        det = hess[:, 0, 0] * hess[:, 1, 1] - hess[:, 0, 1] * hess[:, 1, 0]
-        ok = np.abs(det) > 0
-        safe = np.where(ok, det, 1.0)
-        ds = -(hess[:, 1, 1] * grad[:, 0] - hess[:, 0, 1] * grad[:, 1]) / safe
-        dt = -(-hess[:, 1, 0] * grad[:, 0] + hess[:, 0, 0] * grad[:, 1]) / safe
-        step = np.column_stack([np.where(ok, ds, 0.0), np.where(ok, dt, 0.0)])
-        # never farther than the facet's own size per step: Newton from a poor start must not
-        # jump to another sheet of the surface
-        big = np.max(np.abs(step), axis=1)
-        st = st + step / np.maximum(1.0, big)[:, None]
-        if np.all(big < 1e-12):
-            break
-    x, n, tan, hess, grad, legs, bn = _geometry(V, F, N, face, st, Sq, Pq)
-    (r_s, u_s), (r_p, u_p) = legs
-    eps = 1e-6
-    inside = (st[:, 0] >= -eps) & (st[:, 1] >= -eps) & (st[:, 0] + st[:, 1] <= 1 + eps)
+    rot = None
+    if height_field is not None:
+        f_hf, place = height_field
+        rot, shift = np.asarray(place, float)[:3, :3], np.asarray(place, float)[:3, 3]
+        if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-9):
+            rot = None                        # scaled: the mesh is the best we have
+    if rot is not None:
+        # Newton on the exact surface in its own frame, from the facet's estimate
+        Vo = (V - shift) @ rot
+        So, Po = (Sq - shift) @ rot, (Pq - shift) @ rot
+        tri = Vo[F[face]]
+        start = tri[:, 0] + st[:, :1] * (tri[:, 1] - tri[:, 0]) + st[:, 1:] * (tri[:, 2] - tri[:, 0])
+        xy = start[:, :2].copy()
+        step_max = np.linalg.norm(tri[:, 1] - tri[:, 0], axis=1)
+        for _ in range(newton_iterations):
+            _, _, _, hess, grad, _, _ = _height_field_geometry(f_hf, xy, So, Po)
+            det = hess[:, 0, 0] * hess[:, 1, 1] - hess[:, 0, 1] * hess[:, 1, 0]
+            ok = np.abs(det) > 0
+            safe = np.where(ok, det, 1.0)
+            dx = -(hess[:, 1, 1] * grad[:, 0] - hess[:, 0, 1] * grad[:, 1]) / safe
+            dy = -(-hess[:, 1, 0] * grad[:, 0] + hess[:, 0, 0] * grad[:, 1]) / safe
+            step = np.column_stack([np.where(ok, dx, 0.0), np.where(ok, dy, 0.0)])
+            big = np.linalg.norm(step, axis=1)
+            xy += step * np.minimum(1.0, step_max / np.maximum(big, 1e-300))[:, None]
+            if np.all(big < 1e-13):
+                break
+        x, n, tan, hess, grad, legs, bn = _height_field_geometry(f_hf, xy, So, Po)
+        # a point converged from a neighbour's estimate is as good (duplicates are merged)
+        inside, st2 = _inside_xy(tri[:, :, :2], xy, 0.5)
+        flat = tri[:, 0] + st2[:, :1] * (tri[:, 1] - tri[:, 0]) + st2[:, 1:] * (tri[:, 2] - tri[:, 0])
+        # back to the mesh's frame (vectors rotate; lengths, Hessian and b·n do not change)
+        x, flat = x @ rot.T + shift, flat @ rot.T + shift
+        n, tan = n @ rot.T, tan @ rot.T
+        legs = [(r, u @ rot.T) for r, u in legs]
+        (r_s, u_s), (r_p, u_p) = legs
+    else:
+        for _ in range(newton_iterations):
+            x, n, tan, hess, grad, legs, bn, _ = _geometry(V, F, N, face, st, Sq, Pq)
+            det = hess[:, 0, 0] * hess[:, 1, 1] - hess[:, 0, 1] * hess[:, 1, 0]
+            ok = np.abs(det) > 0
+            safe = np.where(ok, det, 1.0)
+            ds = -(hess[:, 1, 1] * grad[:, 0] - hess[:, 0, 1] * grad[:, 1]) / safe
+            dt = -(-hess[:, 1, 0] * grad[:, 0] + hess[:, 0, 0] * grad[:, 1]) / safe
+            step = np.column_stack([np.where(ok, ds, 0.0), np.where(ok, dt, 0.0)])
+            # never farther than the facet's own size per step: Newton from a poor start must not
+            # jump to another sheet of the surface
+            big = np.max(np.abs(step), axis=1)
+            st = st + step / np.maximum(1.0, big)[:, None]
+            if np.all(big < 1e-12):
+                break
+        x, n, tan, hess, grad, legs, bn, flat = _geometry(V, F, N, face, st, Sq, Pq)
+        (r_s, u_s), (r_p, u_p) = legs
+        eps = 1e-6
+        inside = (st[:, 0] >= -eps) & (st[:, 1] >= -eps) & (st[:, 0] + st[:, 1] <= 1 + eps)
     # the law of reflection holds (the residual is a sine: |b_t| / |b|) ...
     bnorm = np.linalg.norm(u_s + u_p, axis=1)
     resid = np.linalg.norm((u_s + u_p) - bn[:, None] * n, axis=1) / np.where(bnorm > 0, bnorm, 1.0)
     # ... source and receiver on the same side, off the surface
     cs, cp = -np.einsum("kj,kj->k", u_s, n), -np.einsum("kj,kj->k", u_p, n)
     same_side = (cs * cp > 0) & (r_s > 0) & (r_p > 0)
-    keep = inside & same_side & (resid < 1e-6) & np.all(np.isfinite(x), axis=1)
+    keep = inside & same_side & (resid < 1e-3) & np.all(np.isfinite(x), axis=1)
     if newton_iterations == 0:
         keep = inside & same_side & np.all(np.isfinite(x), axis=1)
     idx = np.flatnonzero(keep)
@@ -342,4 +431,4 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
     div = mag * np.exp(1j * np.pi * (2 - sig) / 4)
     image = S[pair[idx]] + (total / rs)[:, None] * (x[idx] - S[pair[idx]])
     return SpecularPoints(pair[idx], face[idx], x[idx], nrm, rs, rp, cos_inc, image, div,
-                          sig.astype(int), capped)
+                          sig.astype(int), capped, flat[idx])

@@ -283,6 +283,10 @@ class SpecularSpec(ConfigModel):
     newton_iterations: Count = Field(8, le=50)
     """Refinement of each bounce point on the smooth surface the mesh samples (0: the linear
     estimate on its facet): an accuracy knob (docs/accuracy.md)."""
+    exact_surface: bool = True
+    """Sea surfaces (``wind_sea``, ``swell``): refine bounce points and take their levels on the
+    exact surface, the mesh only finding them and deciding visibility; false: on the mesh
+    (Phong-smooth facets), whose error the mesh resolution sets (docs/accuracy.md)."""
     focusing_limit_db: Real = Field(20.0, ge=0.0, le=60.0)
     """Largest gain of a curved mirror over a flat one (dB): geometrical optics diverges at a
     caustic; paths held at the limit are counted in the run record."""
