@@ -58,6 +58,30 @@ def _draw_motion(plotter, scene, setup, targets, max_tracks=300):
                          opacity=1.0 if few else 0.6, label=f"target tracks ({len(pings)} pings)")
 
 
+def _draw_bounces(plotter, rs, targets, view, built_pose, limit: int = 80):
+    """The one-bounce specular paths off curved boundaries (a wavy sea): transmitter → bounce
+    point → target, as lines, and the bounce points (the first ``limit``)."""
+    import pyvista as pv
+    rs.multipath(targets.position_sonar_m, np.ones(len(targets)), 1, view)
+    lines, pts = [], []
+    for _, start, sp, ok in rs.last_specular[:1]:          # the transmit legs
+        for j in np.flatnonzero(ok)[:limit]:
+            p = [start, sp.point_m[j], _into_built(view, targets.position_sonar_m[sp.pair[j]])]
+            lines.append(built_pose.to_world(np.asarray(p)))
+            pts.append(lines[-1][1])
+    if not lines:
+        return
+    for k, seg in enumerate(lines):
+        plotter.add_mesh(pv.lines_from_points(seg), color="purple", line_width=1.5,
+                         label="surface bounce paths" if k == 0 else None)
+    plotter.add_points(np.asarray(pts), color="purple", point_size=7,
+                       render_points_as_spheres=True, label="bounce points")
+
+
+def _into_built(view, x):
+    return np.asarray(x, float) if view is None else view.to_world(np.asarray(x, float)[None])[0]
+
+
 def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, interactive: bool = False,
                  window_size=(1400, 1000)):
     """Draw the scene; write a PNG when ``output`` is given. Returns the output path (or None)."""
@@ -74,6 +98,8 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     plotter = pv.Plotter(off_screen=off, window_size=list(window_size))
     plotter.set_background("white")
     rs, view = setup.ray_scene_at(scene, pose)
+    if rs is not None:
+        rs.advance(ping * setup.interval_s)        # the sea as this ping sees it
     colours = {"surface": "lightblue", "floor": "tan", "obstacle": "dimgray", "rigid": "gold",
                "pressure_release": "orange"}
     if rs is not None:
@@ -122,6 +148,8 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
                 plotter.add_points(t.position_world_m[sel], color=col,
                                    point_size=14 if col == "red" else 10,
                                    render_points_as_spheres=True, label=lab)
+    if rs is not None and len(t) and scene.effects.multipath_order > 0 and rs.curved:
+        _draw_bounces(plotter, rs, t, view, mount if view is not None else pose)
     _draw_motion(plotter, scene, setup, t)
     plotter.add_legend(bcolor="white", size=(0.22, 0.25))
     plotter.show_grid(xtitle="x forward (m)", ytitle="y starboard (m)", ztitle="z depth (m)")
