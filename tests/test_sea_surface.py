@@ -9,6 +9,7 @@ textbook significant wave heights of the spectra; the dispersion relation of gra
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -352,3 +353,81 @@ def test_paths_are_found_on_a_mesh_of_a_hundred_thousand_facets():
     sp = specular_points(m.vertices, m.faces, n, np.broadcast_to([0.0, 0.0, 4.0], tgt.shape), tgt)
     assert set(sp.pair) == set(range(20))             # every target sees the sea somewhere
     assert np.all(np.isfinite(sp.divergence)) and np.all(sp.cos_incidence > 0)
+
+
+def test_ghosts_in_the_images_follow_the_moving_surface():
+    """End to end on scenes/swell_ghost.yaml (3 pings): behind the direct echo, the image peaks
+    along the target's beam sit at the ranges of the analytic bounce points of the travelling
+    swell (1-D Fermat by brentq; one bounce on one leg, and on both), within a quarter of the
+    range resolution c/2B, and they move between pings by more than that resolution."""
+    import processing
+    from acoustics import load_scene
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SceneWarning)
+        scene = load_scene(Path(__file__).resolve().parent.parent / "scenes" / "swell_ghost.yaml")
+    pings = (0, 5, 8)
+    scene = scene.model_copy(update={"pings": scene.pings.model_copy(update={"count": 9})})
+    images = processing.images_of(processing.image(simulate(scene)))
+    c = scene.medium.sound_speed_m_s
+    resolution = c / (2 * scene.signal.bandwidth_hz)
+    wave = scene.boundaries[0].mesh.waves[0]
+    k = 2 * np.pi / wave.wavelength_m
+    omega = np.sqrt(GRAVITY_M_S2 * k)
+    sonar, target = np.array([0.0, 0.0, 4.0]), np.array([20.0, 0.0, 2.0])
+    direct = np.linalg.norm(target - sonar)
+    beam = int(np.argmin(np.abs(images.beam_angle_rad)))
+    rng = images.range_m
+    seen = []
+    for p in pings:
+        paths = _sinusoid_paths(sonar, target, wave.amplitude_m, wave.wavelength_m, omega,
+                                p * scene.pings.interval_s, 1.0, 19.5, 0.0)
+        bounce = min(total for _, total, _ in paths)
+        col = np.abs(images.image[p, 0][:, beam])
+        for expect in ((direct + bounce) / 2, bounce):
+            near = np.abs(rng - expect) < resolution
+            i = int(np.flatnonzero(near)[np.argmax(col[near])])
+            a, b, cc = np.log(col[i - 1:i + 2])
+            peak = rng[i] + 0.5 * (a - cc) / (a - 2 * b + cc) * (rng[1] - rng[0])
+            assert abs(peak - expect) < resolution / 4
+        seen.append(bounce)
+    assert np.ptp(seen) > resolution
+
+
+def test_a_moving_sea_reverberates_from_where_its_facets_are_each_ping():
+    """Surface reverberation on a swell: the rays' hits lie on the surface of the ping's time
+    (to float precision of the mesh), they move between pings, and nothing runs when the sea
+    does not scatter."""
+    text = """
+name: surface reverberation
+sonar:
+  pose: {{position_m: [0, 0, 3], boresight: [0.5, 0, -0.2], receiver_axis: [0, 1, 0]}}
+medium: {{sound_speed_m_s: 1500.0}}
+boundaries:
+  - name: sea surface
+    role: surface
+    mesh: {{shape: swell, center_m: [12, 0], size_m: [30, 20], resolution_m: 0.25,
+           waves: [{{amplitude_m: 0.4, wavelength_m: 15.0}}]}}
+    scattering: {scattering}
+effects: {{reverberation: {{enabled: true, rays_per_square_degree: 4}}}}
+pings: {{count: 2, interval_s: 1.0}}
+"""
+    scene = text_scene(text.format(scattering="{law: lambert, mu_db: -30.0}"))
+    setup = make_setup(scene)
+    rs = setup.ray_scene
+    pose = setup.sonar.pose
+    hits = []
+    for ping in (0, 1):
+        rs.advance(ping * 1.0)
+        vs = rs.reverberation(scene, setup, ping, scene.seed)
+        assert len(vs) > 100 and np.all(np.isfinite(vs.strength))
+        w = pose.to_world(vs.p_tx)
+        z, *_ = rs.meshes[0].surface.height(w[:, 0], w[:, 1], ping * 1.0)
+        # on the facets: within the sag of 0.25-m facets on a 0.4-m, 15-m wave
+        sag = 0.25**2 * 0.4 * (2 * np.pi / 15) ** 2 / 8 * 2
+        assert np.abs(w[:, 2] - z).max() < sag + 1e-6
+        hits.append(w)
+    assert np.abs(hits[0][:, 2].mean() - hits[1][:, 2].mean()) > 1e-3 or not np.allclose(
+        hits[0][:50], hits[1][:50])
+    quiet = simulate(text_scene(text.format(scattering="null")))
+    assert "reverberation" not in list(quiet["Provenance"].ds["stage"].values)

@@ -10,7 +10,7 @@ def add_parser(sub):
     v = sub.add_parser("view", help=HELP)
     v.add_argument("scene", help="scene file (YAML) or a built-in scene's name")
     v.add_argument("-o", "--output", help="PNG file to write")
-    v.add_argument("--ping", type=int, default=0, help="ping whose targets to draw")
+    v.add_argument("--ping", type=int, default=0, help="ping whose targets and sea to draw")
     v.add_argument("--interactive", action="store_true", help="open a window (needs a display)")
     add_output_options(v, memory=False)
     v.set_defaults(func=command)

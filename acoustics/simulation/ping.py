@@ -66,7 +66,10 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
             targets = swimbladder_backscatter(scene, targets, ping, pose, seed)
     strength = targets.rho_m * np.exp(1j * targets.phase_rad)
     rs, view = setup.ray_scene_at(scene, pose, log)
-    if rs is not None and rs.moving:
+    scatters = fx.reverberation.enabled and any(getattr(b, "scattering", None) is not None
+                                                for b in scene.boundaries)
+    if rs is not None and rs.moving and (scatters or scene.targets.meshes or (
+            len(targets) and (fx.occlusion or fx.multipath_order > 0))):
         with log.stage("sea_surface"):
             rs.advance(ping * setup.interval_s)
     shadowed = np.zeros(len(targets), bool)
@@ -87,7 +90,7 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
     if rs is not None and scene.targets.meshes:
         with log.stage("mesh_targets"):
             parts.append(rs.mesh_targets(view))
-    if rs is not None and fx.reverberation.enabled and scene.boundaries:
+    if rs is not None and scatters:
         with log.stage("reverberation"):
             parts.append(rs.reverberation(scene, setup, ping, seed, view))
     vs = VirtualScatterers.concat(parts)
