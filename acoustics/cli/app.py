@@ -159,16 +159,23 @@ def main(argv=None) -> int:
         from processing.resources import ResourceError
 
         from acoustics.cli.common import UsageError
-        from acoustics.experiment import ExperimentError
-        from acoustics.paths.meshes import MeshError
+
+        def user_errors():
+            # the experiment and mesh modules are heavy (Dask, trimesh: 0.6 s of a run's start)
+            # and only a command that imported them can raise their errors
+            found = [ConfigError, DatasetError, NoiseEstimateError, UsageError]
+            for module, name in (("acoustics.experiment", "ExperimentError"),
+                                 ("acoustics.paths.meshes", "MeshError")):
+                if module in sys.modules:
+                    found.append(getattr(sys.modules[module], name))
+            return tuple(found)
         warnings.showwarning = _show_warning
         try:
             return int(args.func(args) or 0)
         except ResourceError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return EXIT_RESOURCES
-        except (ConfigError, DatasetError, NoiseEstimateError, UsageError, ExperimentError,
-                MeshError) as exc:
+        except user_errors() as exc:
             print(f"error: {exc}", file=sys.stderr)
             return EXIT_USAGE
         except BrokenPipeError:
