@@ -13,11 +13,16 @@ targets (acoustics.synthesis). Each runs only when the scene calls for it:
 ``multipath``      specular paths by image sources on planar boundaries, up to K bounces per leg,
                    each bounce point checked on its mesh and every segment checked for
                    blockage by ray casting; strength × Π R(θ_inc) (reflection coefficients);
+                   on any other reflecting mesh (a wavy sea) one bounce per leg through each of
+                   its specular points (acoustics/paths/specular.py), with the curved mirror's
+                   divergence factor;
 ``mesh_targets``   facets of mesh targets facing the transmitter and visible from it, each a
                    scatterer of physical-optics strength (jk/2π)(−n̂·k̂) ∫ e^{−2jk k̂·x} dS
                    (Gordon's exact triangle integral), computed once for static geometry.
 
-A scene without meshes never builds a ray caster.
+A scene without meshes never builds a ray caster. A sea surface that moves (``wind_sea``,
+``swell``) is moved to each ping's time by :meth:`RayScene.advance`, which rebuilds the caster and
+drops what depended on the old surface.
 
 **Frames.** Embree's scene is built once, in the sonar frame at rest (the mounting pose,
 ``sonar.pose``): for a still platform that is every ping's sonar frame. When the platform moves
