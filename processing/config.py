@@ -16,6 +16,7 @@ Rules every configuration model follows:
 from __future__ import annotations
 
 import math
+import os
 import re
 import types
 import typing
@@ -124,12 +125,19 @@ def AngleRangeDeg(lo: float, hi: float):
                      Field(json_schema_extra={"description_unit": "degrees"})]
 
 
+#: Whether the settings' attribute docstrings become their descriptions (JSON Schema). pydantic
+#: reads them from the source files when each class is made — 0.25 s of every command's start —
+#: so they are read only in a process that writes the schema (ABACUS_FIELD_DOCS=1; see
+#: acoustics.scene.json_schema, which starts one).
+FIELD_DOCS = os.environ.get("ABACUS_FIELD_DOCS") == "1"
+
+
 class ConfigModel(BaseModel):
     """Base of every configuration section: frozen, closed, validated defaults."""
 
     model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True,
                               populate_by_name=False, allow_inf_nan=False,
-                              use_attribute_docstrings=True)
+                              use_attribute_docstrings=FIELD_DOCS)
 
 
 # ------------------------------------------------------------------------- reading

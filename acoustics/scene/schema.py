@@ -418,7 +418,18 @@ def _split_key_path(path: str) -> list:
 
 
 def json_schema() -> dict:
-    """JSON Schema of the scene file (aliases, i.e. the keys a file uses)."""
+    """JSON Schema of the scene file (aliases, i.e. the keys a file uses), with each key's
+    description (its docstring: made in a process that reads them, processing.config.FIELD_DOCS)."""
+    from processing.config import FIELD_DOCS
+    if not FIELD_DOCS:
+        import os
+        import subprocess
+        import sys
+        done = subprocess.run([sys.executable, "-c", "import json, acoustics.scene as s; "
+                               "print(json.dumps(s.json_schema()))"],
+                              env={**os.environ, "ABACUS_FIELD_DOCS": "1"}, capture_output=True,
+                              text=True, check=True)
+        return json.loads(done.stdout)
     schema = Scene.model_json_schema(by_alias=True, mode="validation")
     schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
     schema["title"] = "abacus scene file"
