@@ -431,3 +431,21 @@ pings: {{count: 2, interval_s: 1.0}}
         hits[0][:50], hits[1][:50])
     quiet = simulate(text_scene(text.format(scattering="null")))
     assert "reverberation" not in list(quiet["Provenance"].ds["stage"].values)
+
+
+@pytest.mark.parametrize("name", ["pelagic_wind_sea", "swell_ghost", "pelagic_floor_rock",
+                                  "calibration_sphere"])
+def test_the_resource_estimate_counts_the_faces_a_mesh_builds(name):
+    """The budget's face count (memory estimate before any work) bounds the built mesh's faces
+    within 10 % (it used to read a key shapes do not have and counted none)."""
+    from acoustics import load_scene
+    from acoustics.simulation.budget import mesh_faces
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SceneWarning)
+        scene = load_scene(Path(__file__).resolve().parent.parent / "scenes" / f"{name}.yaml")
+    setup = make_setup(scene)
+    specs = [*scene.boundaries, *scene.targets.meshes]
+    built = {sm.name: len(sm.mesh.faces) for sm in setup.ray_scene.meshes}
+    for spec in specs:
+        est = mesh_faces(spec)
+        assert built[spec.name] <= est <= 1.1 * built[spec.name] + 12

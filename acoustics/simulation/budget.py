@@ -41,10 +41,10 @@ def population_bound(pop) -> int:
 def mesh_faces(spec) -> int:
     """Triangles a mesh spec builds (files: the size of the file as a bound, 50 bytes a face)."""
     shape = spec.mesh
-    kind = getattr(shape, "kind", "")
+    kind = getattr(shape, "shape", "")
     if kind == "plane":
         return 2 * int(shape.segments[0]) * int(shape.segments[1])
-    if kind == "rough_floor":
+    if kind in ("rough_floor", "wind_sea", "swell"):
         nx = math.ceil(shape.size_m[0] / shape.resolution_m) + 1
         ny = math.ceil(shape.size_m[1] / shape.resolution_m) + 1
         return 2 * nx * ny
