@@ -229,7 +229,7 @@ pings: {{count: 6, interval_s: 0.7}}
         rs.advance(t)
         tx_c = pose.to_world(rs.tx_center[None])[0]
         expect = _sinusoid_paths(tx_c, target_w, amp, lam, omega, t, 0.5, 23.5, 0.0)
-        got_t, got_img, got_c = rs.specular_legs(rs.tx_center, target)
+        got_t, got_img, got_c, _ = rs.specular_legs(rs.tx_center, target)
         _, _, sp, ok = rs.last_specular[-1]
         pts = pose.to_world(sp.point_m[ok])
         assert len(pts) == len(expect) >= 1
@@ -449,3 +449,70 @@ def test_the_resource_estimate_counts_the_faces_a_mesh_builds(name):
     for spec in specs:
         est = mesh_faces(spec)
         assert built[spec.name] <= est <= 1.1 * built[spec.name] + 12
+
+
+def _path_lengths(rs, vs):
+    tx_c, rx_c = rs.centers()
+    return (np.linalg.norm(vs.p_tx - tx_c, axis=1) + np.linalg.norm(vs.p_rx - rx_c, axis=1))
+
+
+@pytest.mark.parametrize("mesh", [
+    "{shape: plane, center_m: [15, 0, 0], normal: [0, 0, 1], size_m: [40, 20]}",
+    "{shape: swell, center_m: [15, 0], size_m: [40, 20], resolution_m: 0.25, "
+    "waves: [{amplitude_m: 0.3, wavelength_m: 12.0, direction_deg: 20.0}]}"])
+def test_multipath_doppler_is_the_rate_of_change_of_each_path(mesh):
+    """The rate each path's length changes (its Doppler shift is −f0/c times it) — from the
+    target's velocity along its legs, the platform's, and the moving sea's vertical velocity at
+    the bounce points — equals the central difference of the path lengths with the target, the
+    sonar and the sea moved ±1 ms (to 1 mm/s)."""
+    setup = make_setup(text_scene(_FLAT.format(mesh=mesh)))
+    rs = setup.ray_scene
+    p0 = setup.sonar.pose.to_sonar(np.array([[20.0, 0.5, 3.0]]))
+    v_t = np.array([[0.4, -0.3, 0.6]])          # sonar-frame axes (m/s)
+    v_s = np.array([0.2, 0.1, -0.5])
+    t0, dt = 1.0, 1e-3
+    rs.advance(t0)
+    vs = rs.multipath(p0, np.ones(1), 1, velocities_m_s=v_t, sonar_velocity_m_s=v_s)
+    rate = rs.last_path_rate_m_s.copy()
+    assert rate.size == len(vs) >= 3
+
+    def lengths(sign):
+        from acoustics.frames import Pose
+        rs.advance(t0 + sign * dt)
+        # the sonar moving by v_s·dt is the scene moving by −v_s·dt around it
+        view = Pose(sign * dt * v_s, np.eye(3))
+        # the target's built-frame position moves by v_t·dt; seen from the moved sonar
+        out = rs.multipath(p0 + sign * dt * (v_t - v_s), np.ones(1), 1, view)
+        tx_c, rx_c = rs.centers(view)
+        return (np.linalg.norm(view.to_world(out.p_tx) - tx_c, axis=1)
+                + np.linalg.norm(view.to_world(out.p_rx) - rx_c, axis=1))
+
+    after, before = lengths(+1), lengths(-1)
+    assert after.size == before.size == rate.size
+    fd = (after - before) / (2 * dt)
+    np.testing.assert_allclose(np.sort(rate), np.sort(fd), atol=1e-3)
+
+
+def test_a_ping_gives_its_surface_paths_the_doppler_of_the_moving_sea(monkeypatch):
+    """With effects.doppler on, a still target under a swell: its direct echo has no shift and
+    each surface path has −f0/c times its rate of change of length (the sea's motion)."""
+    import acoustics.simulation.ping as ping_mod
+    scene = text_scene(_FLAT.format(
+        mesh="{shape: swell, center_m: [15, 0], size_m: [40, 20], resolution_m: 0.25, "
+             "waves: [{amplitude_m: 0.3, wavelength_m: 12.0}]}").replace(
+        "effects: {multipath_order: 1}", "effects: {multipath_order: 1, doppler: true}"))
+    setup = make_setup(scene)
+    seen = {}
+    real = ping_mod.synthesize
+
+    def spy(*args, **kw):
+        seen.update(kw)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(ping_mod, "synthesize", spy)
+    simulate_ping(scene, setup, 2)
+    rate = setup.ray_scene.last_path_rate_m_s
+    f0, c = scene.signal.center_frequency_hz, scene.medium.sound_speed_m_s
+    assert seen["doppler_hz"][0] == 0.0                      # the still target, direct
+    np.testing.assert_allclose(seen["doppler_hz"][1:1 + rate.size], -rate * f0 / c)
+    assert np.abs(seen["doppler_hz"][1:]).max() > 10.0        # Hz: the sea moves ~0.5 m/s

@@ -88,6 +88,8 @@ class RayScene:
     specular_capped: int = 0
     """Specular paths whose level the focusing limit capped (near a caustic), this run."""
     last_specular: list = field(default_factory=list)
+    last_path_rate_m_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """d(path length)/dt (m/s) of each path of the last ``multipath`` call."""
     """(mesh index, start, SpecularPoints, visible) of the last ``multipath`` call (views)."""
     _normal_cache: dict = field(default_factory=dict)
     time_s: float = 0.0
@@ -287,7 +289,7 @@ class RayScene:
             self._normal_cache[key] = vertex_normals(sm.mesh.vertices, sm.mesh.faces)
         return self._normal_cache[key]
 
-    def specular_legs(self, start, ends):
+    def specular_legs(self, start, ends, velocities=None, start_velocity=None):
         """One-bounce legs from ``start`` to each of ``ends`` off every curved boundary.
 
         Parameters
@@ -304,11 +306,17 @@ class RayScene:
             Unfolded images (m), built frame.
         coefficient : ndarray, shape (k,), complex
             R(θ) × the curved mirror's divergence factor.
+        rate : ndarray, shape (k,)
+            dL/dt of each leg's length (m/s): the target's velocity along the last segment,
+            the start's along the first, and the sea's vertical velocity at the bounce point
+            (by stationarity only the surface's motion at fixed (x, y) changes the length to
+            first order: dL = b_z dz, b the legs' bisector in the sea's frame). Zeros without
+            velocities.
 
         The bounce points themselves are kept in ``last_specular`` (views, tests).
         """
         from acoustics.paths.specular import specular_points
-        tgt, img, coef = [], [], []
+        tgt, img, coef, rate = [], [], [], []
         spec = self.specular
         for i in self.curved:
             sm = self.meshes[i]
@@ -326,33 +334,60 @@ class RayScene:
                 # recorded with the run's ray counts (Provenance rays_cast_json)
                 self.specular_capped += int(sp.capped.sum())
                 self.caster._count("specular_capped_paths", int(sp.capped.sum()))
-            # the bounce point must be the first thing on the way in, and the way out clear
-            # (the bounce point's foot on the facet: the smooth surface may be off it by its sag)
-            foot = sp.mesh_point_m
-            reach = np.linalg.norm(foot - start, axis=1)
-            first = self.caster.first_hit(np.broadcast_to(start, foot.shape), foot - start,
-                                          purpose="multipath")
-            # (1 mm per metre: the exact surface's point may lie on a neighbouring facet)
-            near = np.abs(first.distance - reach) <= 10 * self.caster.eps_m + 1e-3 * reach
-            ok = first.hit & (first.mesh == i) & near
-            ok &= ~self.caster.occluded(foot, ends[sp.pair], purpose="multipath",
-                                        start_on_surface=True)
+            # nothing on the way in or out: both legs end a little off the surface on the water
+            # side (the mesh lies within the smooth surface's sag of the bounce point, on either
+            # side, so the lift is twice that distance)
+            lift = (2.0 * np.linalg.norm(sp.point_m - sp.mesh_point_m, axis=1)
+                    + 10 * self.caster.eps_m + 1e-5 * sp.source_range_m)
+            wet = sp.point_m + lift[:, None] * sp.normal
+            ok = ~self.caster.occluded(np.broadcast_to(start, wet.shape), wet, purpose="multipath")
+            ok &= ~self.caster.occluded(wet, ends[sp.pair], purpose="multipath")
             if not ok.any():
                 continue
             sel = np.flatnonzero(ok)
             tgt.append(sp.pair[sel])
             img.append(sp.image_m[sel])
             coef.append(self._reflection(i, sp.cos_incidence[sel]) * sp.divergence[sel])
+            rate.append(self._specular_rate(sm, start, ends, sp, sel, velocities, start_velocity))
             self.last_specular.append((i, start, sp, ok))
         if not tgt:
-            return np.zeros(0, int), np.zeros((0, 3)), np.zeros(0, complex)
-        return np.concatenate(tgt), np.concatenate(img), np.concatenate(coef)
+            return np.zeros(0, int), np.zeros((0, 3)), np.zeros(0, complex), np.zeros(0)
+        return np.concatenate(tgt), np.concatenate(img), np.concatenate(coef), np.concatenate(rate)
 
-    def _legs(self, start, p, order):
+    @staticmethod
+    def _specular_rate(sm, start, ends, sp, sel, velocities, start_velocity):
+        x = sp.point_m[sel]
+        p = ends[sp.pair[sel]]
+        out = np.zeros(sel.size)
+        if velocities is not None:
+            out += np.einsum("ij,ij->i", (p - x) / sp.receiver_range_m[sel, None],
+                             velocities[sp.pair[sel]])
+        if start_velocity is not None:
+            out += ((start - x) / sp.source_range_m[sel, None]) @ start_velocity
+        if sm.moving:
+            rot, shift = sm.placement[:3, :3], sm.placement[:3, 3]
+            own = (x - shift) @ rot
+            b = ((x - start) / sp.source_range_m[sel, None]
+                 + (x - p) / sp.receiver_range_m[sel, None]) @ rot
+            out += b[:, 2] * sm.surface.vertical_velocity(own[:, 0], own[:, 1], sm.time_s)
+        return out
+
+    def _legs(self, start, p, order, velocities=None, start_velocity=None):
         """Every leg from ``start`` to the targets ``p``: direct, plane images up to ``order``
-        bounces, one bounce off each curved boundary; as flat rows (target, point, Π R, bounces)."""
+        bounces, one bounce off each curved boundary; as flat rows (target, point, Π R, bounces,
+        dL/dt), velocities (m/s) in the built frame."""
         n = p.shape[0]
-        rows = [(np.arange(n), p, np.ones(n, complex), np.zeros(n, int))]
+        v = np.zeros((n, 3)) if velocities is None else velocities
+        vs = np.zeros(3) if start_velocity is None else start_velocity
+
+        def rate(points, idx, mirror=None):
+            # L = |image − start|; the image moves with the target's velocity mirrored
+            d = points - start
+            u = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+            vt = v[idx] if mirror is None else mirror(v[idx])
+            return np.einsum("ij,ij->i", u, vt) - u @ vs
+
+        rows = [(np.arange(n), p, np.ones(n, complex), np.zeros(n, int), rate(p, np.arange(n)))]
         planes = sorted(self.planes)
         seqs, frontier = [], [()]
         for _ in range(order if planes else 0):
@@ -361,14 +396,22 @@ class RayScene:
         for seq in seqs:
             image, valid, coef = self._unfold(start, p, seq)
             idx = np.flatnonzero(valid)
-            rows.append((idx, image[idx], coef[idx], np.full(idx.size, len(seq))))
+
+            def mirror_v(vel, seq=seq):
+                for b in reversed(seq):
+                    nrm = self.planes[b][0]
+                    vel = vel - 2.0 * (vel @ nrm)[:, None] * nrm
+                return vel
+
+            rows.append((idx, image[idx], coef[idx], np.full(idx.size, len(seq)),
+                         rate(image[idx], idx, mirror_v)))
         if self.curved and order >= 1:
-            t, im, c = self.specular_legs(start, p)
-            rows.append((t, im, c, np.ones(t.size, int)))
+            t, im, c, r = self.specular_legs(start, p, velocities, start_velocity)
+            rows.append((t, im, c, np.ones(t.size, int), r))
         return tuple(np.concatenate(col) for col in zip(*rows))
 
-    def multipath(self, positions_m, strength, order: int,
-                  view: Pose | None = None) -> VirtualScatterers:
+    def multipath(self, positions_m, strength, order: int, view: Pose | None = None, *,
+                  velocities_m_s=None, sonar_velocity_m_s=None) -> VirtualScatterers:
         """Specular paths of point targets: up to ``order`` bounces per leg on planar
         boundaries (image sources), one bounce per leg on any other reflecting boundary
         (specular points).
@@ -382,6 +425,11 @@ class RayScene:
         order : int
         view : Pose, optional
             This ping's sonar frame in the frame the scene was built in (None: the same).
+        velocities_m_s : array_like, shape (n, 3), optional
+            The targets' velocities (m/s) in the ping's sonar frame axes; with
+            ``sonar_velocity_m_s`` (3,) they give each path's rate of change of length,
+            ``last_path_rate_m_s`` (m/s, transmit leg + receive leg, the moving sea included):
+            its Doppler shift is −f0/c times it.
 
         Returns
         -------
@@ -392,14 +440,21 @@ class RayScene:
         p = _into(view, np.asarray(positions_m, float).reshape(-1, 3))
         q = np.asarray(strength, complex).reshape(-1)
         self.last_specular = []
+        self.last_path_rate_m_s = np.zeros(0)
         if order < 1 or not self.reflectors or p.shape[0] == 0:
             return VirtualScatterers.empty()
+        rot = None if view is None else view.rotation
+        vel = None if velocities_m_s is None else np.asarray(velocities_m_s, float).reshape(-1, 3)
+        v_s = None if sonar_velocity_m_s is None else np.asarray(sonar_velocity_m_s, float)
+        if rot is not None:        # vectors of the ping's sonar axes into the built frame
+            vel = None if vel is None else vel @ rot.T
+            v_s = None if v_s is None else rot @ v_s
         tx_c, rx_c = self.centers(view)
-        t_tgt, t_pt, t_c, t_nb = self._legs(tx_c, p, order)
-        r_tgt, r_pt, r_c, r_nb = self._legs(rx_c, p, order)
+        t_tgt, t_pt, t_c, t_nb, t_rate = self._legs(tx_c, p, order, vel, v_s)
+        r_tgt, r_pt, r_c, r_nb, r_rate = self._legs(rx_c, p, order, vel, v_s)
         # join the legs on the target: every transmit leg with every receive leg
         o = np.argsort(r_tgt, kind="stable")
-        r_tgt, r_pt, r_c, r_nb = r_tgt[o], r_pt[o], r_c[o], r_nb[o]
+        r_tgt, r_pt, r_c, r_nb, r_rate = r_tgt[o], r_pt[o], r_c[o], r_nb[o], r_rate[o]
         lo = np.searchsorted(r_tgt, t_tgt, "left")
         hi = np.searchsorted(r_tgt, t_tgt, "right")
         cnt = hi - lo
@@ -409,6 +464,7 @@ class RayScene:
         ti, ri = ti[bounced], ri[bounced]
         if ti.size == 0:
             return VirtualScatterers.empty()
+        self.last_path_rate_m_s = t_rate[ti] + r_rate[ri]
         return VirtualScatterers(_out_of(view, t_pt[ti]), _out_of(view, r_pt[ri]),
                                  q[t_tgt[ti]] * t_c[ti] * r_c[ri], np.full(ti.size, "multipath"))
 

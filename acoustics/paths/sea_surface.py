@@ -174,6 +174,19 @@ class MovingSurface:
         out[0] += self.mean_level_m
         return tuple(out)
 
+    def vertical_velocity(self, x_m, y_m, time_s: float):
+        """∂z/∂t (m/s, world frame, z down: positive when the surface sinks) at fixed (x, y)."""
+        x = np.asarray(x_m, float)
+        y = np.asarray(y_m, float)
+        out = np.zeros(np.broadcast(x, y).shape)
+        for lo in range(0, self.amplitude_m.size, 256):
+            sl = slice(lo, lo + 256)
+            arg = (x[..., None] * self.k_m[sl, 0] + y[..., None] * self.k_m[sl, 1]
+                   - self.omega_rad_s[sl] * time_s + self.phase_rad[sl])
+            # η = Σ a cos(arg): ∂η/∂t = Σ a ω sin(arg); z = L − η
+            out -= np.sin(arg) @ (self.amplitude_m[sl] * self.omega_rad_s[sl])
+        return out
+
     def grid(self, time_s: float):
         """Vertices (ny·nx, 3) and unit normals (ny·nx, 3) pointing up (−z) at time t; the
         vertex order of :func:`acoustics.paths.meshes._grid_mesh`."""

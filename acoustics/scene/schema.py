@@ -180,7 +180,8 @@ class EffectsSpec(ConfigModel):
     reverberation: ReverberationSpec = ReverberationSpec()
     doppler: bool = False
     """Echoes of moving targets (and of any target seen from a moving platform) carry their
-    Doppler shift 2 v_r f0 / c: with the LFM pulse's range–Doppler coupling a closing speed of
+    Doppler shift 2 v_r f0 / c (a multipath path: −f0/c times the rate its length changes, a
+    moving sea's included): with the LFM pulse's range–Doppler coupling a closing speed of
     0.5 m/s biases the range by 7 cm, 2 m/s by 29 cm (docs/accuracy.md, "within-ping motion")."""
     doppler_bin_hz: PositiveReal = Field(5.0, le=1000.0)
     """Doppler grid of the fast synthesis (Hz), an accuracy knob (docs/accuracy.md)."""

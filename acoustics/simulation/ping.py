@@ -23,18 +23,23 @@ def doppler_shift_hz(scene, setup: Setup, ping: int, pose, targets: TargetSet) -
     line between them; the sonar's from its poses 0.05 s either side of the ping)."""
     v_target = (targets.velocity_world_m_s if targets.velocity_world_m_s is not None
                 else np.zeros((len(targets), 3)))
-    v_sonar = np.zeros(3)
-    if setup.platform is not None:
-        dt = 0.05
-        t = ping * setup.interval_s
-        before = setup.platform.pose(setup.sonar.pose, t - dt).position_m
-        after = setup.platform.pose(setup.sonar.pose, t + dt).position_m
-        v_sonar = (after - before) / (2 * dt)
+    v_sonar = _sonar_velocity_world(setup, ping)
     d = targets.position_world_m - pose.position_m
     dist = np.linalg.norm(d, axis=1, keepdims=True)
     d = np.divide(d, dist, out=np.zeros_like(d), where=dist > 0)
     closing = -np.sum((v_target - v_sonar) * d, axis=1)
     return 2.0 * closing * scene.signal.center_frequency_hz / setup.medium.sound_speed_m_s
+
+
+def _sonar_velocity_world(setup: Setup, ping: int) -> np.ndarray:
+    """The sonar's world velocity (m/s) at a ping, from its poses 0.05 s either side."""
+    if setup.platform is None:
+        return np.zeros(3)
+    dt = 0.05
+    t = ping * setup.interval_s
+    before = setup.platform.pose(setup.sonar.pose, t - dt).position_m
+    after = setup.platform.pose(setup.sonar.pose, t + dt).position_m
+    return (after - before) / (2 * dt)
 
 
 def _with_shadow(targets: TargetSet, shadowed):
@@ -82,11 +87,20 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
         with log.stage("platform_in_flight"):
             p_rx = setup.platform.at_arrival(setup.sonar.pose, ping * setup.interval_s,
                                              targets.position_world_m, setup.medium.sound_speed_m_s)
+    multipath_rate = np.zeros(0)
     parts = [VirtualScatterers(targets.position_sonar_m[direct], p_rx[direct],
                                strength[direct], np.full(int(direct.sum()), "direct"))]
     if rs is not None and fx.multipath_order > 0 and rs.reflectors and len(targets):
         with log.stage("multipath"):
-            parts.append(rs.multipath(targets.position_sonar_m, strength, fx.multipath_order, view))
+            kw = {}
+            if fx.doppler:   # the paths' rates of change of length, for their Doppler shifts
+                v_t = (targets.velocity_world_m_s if targets.velocity_world_m_s is not None
+                       else np.zeros((len(targets), 3)))
+                kw = dict(velocities_m_s=v_t @ pose.rotation,
+                          sonar_velocity_m_s=pose.rotation.T @ _sonar_velocity_world(setup, ping))
+            parts.append(rs.multipath(targets.position_sonar_m, strength, fx.multipath_order, view,
+                                      **kw))
+            multipath_rate = rs.last_path_rate_m_s
     if rs is not None and scene.targets.meshes:
         with log.stage("mesh_targets"):
             parts.append(rs.mesh_targets(view))
@@ -98,7 +112,12 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
     if fx.doppler and len(vs) and len(targets):
         with log.stage("doppler"):
             doppler = np.zeros(len(vs))
-            doppler[:int(direct.sum())] = doppler_shift_hz(scene, setup, ping, pose, targets)[direct]
+            n_direct = int(direct.sum())
+            doppler[:n_direct] = doppler_shift_hz(scene, setup, ping, pose, targets)[direct]
+            # multipath paths follow the direct ones: f_d = −f0 (dL/dt) / c, the moving sea's
+            # share included
+            doppler[n_direct:n_direct + multipath_rate.size] = (
+                -multipath_rate * scene.signal.center_frequency_hz / setup.medium.sound_speed_m_s)
     if len(vs):
         with log.stage("echoes"):
             bistatic = not np.array_equal(vs.p_tx, vs.p_rx)
