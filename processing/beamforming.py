@@ -49,9 +49,13 @@ class SubarrayGeometry:
         if p.shape[0] == 0:
             raise ValueError("a subarray needs at least one element")
         self.order = np.argsort(p[:, 0], kind="stable")
+        #: whether the elements came sorted (their order needs no gather)
+        self.sorted = bool(np.all(self.order == np.arange(self.order.size)))
         self.positions_m = p[self.order]
         self.weights = window(spatial_window, p.shape[0])
         self.center_m = self.positions_m.mean(axis=0)
+        #: (n_beams, wavelength) -> (angles, correction per DFT bin) of :func:`beamform_fft`
+        self.fft_plans: dict = {}
 
     @property
     def n_elements(self) -> int:
@@ -127,30 +131,62 @@ def beamform_das(y, geometry: SubarrayGeometry, angles_rad, wavelength_m: float)
     return np.einsum("bn,...nr->...rb", a, ys)
 
 
-def beamform_fft(y, geometry: SubarrayGeometry, n_beams: int, wavelength_m: float):
+def beamform_fft(y, geometry: SubarrayGeometry, n_beams: int, wavelength_m: float, *, beams=None,
+                 out=None):
     """FFT beamforming with zero-padding and the phase-centre correction (eq. 4.36–4.40).
+
+    Parameters
+    ----------
+    y : ndarray, shape (..., n_el, n_range), complex
+        Compressed channels of this subarray, in the order the geometry was given.
+    geometry : SubarrayGeometry
+        Uniformly spaced elements.
+    n_beams : int
+        FFT length (>= n_el): the beams of :func:`fft_beam_angles`.
+    wavelength_m : float
+        λ at the carrier (m).
+    beams : ndarray of int, shape (n_sel,), optional
+        The beams to form, as indices into the ascending angles; default all.
+    out : ndarray, shape (..., n_range, n_sel), complex128, optional
+        Where to write the image.
 
     Returns
     -------
-    angles_rad : ndarray, shape (n_beams,)
-    image : ndarray, shape (..., n_range, n_beams), complex128
+    angles_rad : ndarray, shape (n_sel,)
+    image : ndarray, shape (..., n_range, n_sel), complex128
     """
-    if not geometry.is_uniform():
-        raise ValueError("FFT beamforming needs uniformly spaced elements; use delay_and_sum")
+    angles, corr = _fft_plan(geometry, int(n_beams), float(wavelength_m))
     n_el = geometry.n_elements
     if n_beams < n_el:
         raise ValueError(f"FFT beamforming needs n_beams >= the {n_el} elements")
-    d = geometry.pitch_m
-    k = 2 * np.pi / wavelength_m
-    ys = np.asarray(y)[..., geometry.order, :] * geometry.weights[:, None]
-    spec = sfft.fft(ys, n_beams, axis=-2)          # (..., n_beams, n_range)
-    spec = sfft.fftshift(spec, axes=-2)
-    angles = fft_beam_angles(n_beams, d, wavelength_m)
-    x0 = geometry.positions_m[0] - geometry.center_m
-    u = np.stack([np.sin(angles), np.zeros_like(angles), np.cos(angles)], -1)
-    # the DFT's phase refers to element 0 along x only; move it to the phase centre
-    corr = np.exp(-1j * k * (u @ x0)) / geometry.weights.sum()
-    return angles, np.swapaxes(spec * corr[:, None], -1, -2)
+    y = np.asarray(y)
+    ys = np.swapaxes(y if geometry.sorted else y[..., geometry.order, :], -1, -2) * geometry.weights
+    # the DFT along the last axis leaves beams contiguous per range sample, the image's layout
+    spec = sfft.fft(ys, n_beams, axis=-1)          # (..., n_range, n_beams), DFT bin order
+    spec *= corr
+    sel = np.arange(n_beams) if beams is None else np.asarray(beams, int)
+    # the ascending beam m sits in DFT bin (m − n/2) mod n: fftshift as a gather of the kept beams
+    bins = (sel - n_beams // 2) % n_beams
+    # mode "wrap" (the indices are in range anyway) lets np.take write into ``out`` unbuffered
+    img = np.take(spec, bins, axis=-1, out=out, mode="wrap")
+    return angles[sel], img
+
+
+def _fft_plan(geometry: SubarrayGeometry, n_beams: int, wavelength_m: float):
+    """Ascending beam angles (n_beams,) and the phase-centre correction of each DFT bin
+    (n_beams,), remembered per geometry (a record is beamformed ping after ping)."""
+    key = (n_beams, wavelength_m)
+    if key not in geometry.fft_plans:
+        if not geometry.is_uniform():
+            raise ValueError("FFT beamforming needs uniformly spaced elements; use delay_and_sum")
+        k = 2 * np.pi / wavelength_m
+        angles = fft_beam_angles(n_beams, geometry.pitch_m, wavelength_m)
+        x0 = geometry.positions_m[0] - geometry.center_m
+        u = np.stack([np.sin(angles), np.zeros_like(angles), np.cos(angles)], -1)
+        # the DFT's phase refers to element 0 along x only; move it to the phase centre
+        corr = np.exp(-1j * k * (u @ x0)) / geometry.weights.sum()
+        geometry.fft_plans[key] = (angles, np.fft.ifftshift(corr))
+    return geometry.fft_plans[key]
 
 
 def beamform_wideband(spectra, geometry: SubarrayGeometry, angles_rad, *, wavelength_m: float,

@@ -5,27 +5,39 @@ images weigh 3 MB, a 100-ping run's 300 MB — and detection only needs a few nu
 cell. :func:`detect_record` therefore forms the images of a chunk of pings, detects in them and
 keeps the detections, so memory stays at one chunk's images whatever the number of pings; the
 images of chosen pings (for figures) can be kept. Results are identical to processing every ping
-at once: a pooled noise estimate is fitted first from exactly the cells the settings name
-(imaging only the noise region's rows when the noise comes from a region).
+at once, also when one noise level is pooled over every ping (the thesis' setting).
+
+A pooled noise level is known only once every ping is imaged, yet each ping is imaged only once:
+each chunk keeps its noise cells and describes its peaks above a lower bound of the final
+threshold (its own noise fit with σ halved); once the pooled fit of all the cells is known, the
+final threshold picks the detections out of each chunk's candidates — exactly those it would
+detect, since whether a cell is a local maximum does not depend on the threshold. A chunk whose
+bound turns out above the final threshold (noise far from stationary) is imaged again.
 """
 from __future__ import annotations
 
 import os
 import warnings
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .counting import CountingVolume
-from .detection import DetectionWarning, Detections, detect_all, fit_noise_cells, noise_cells
+from .detection import (DetectionWarning, Detections, Thresholds, candidates, detect_all,
+                        fit_noise_cells, noise_cells, ping_thresholds, select, snr_db)
 from .imaging import form_images
-from .noise import NoiseEstimateError
+from .noise import NoiseEstimateError, RayleighFit, rayleigh_mean
 from .settings import ProcessingSettings
 
 __all__ = ["detect_record", "record_pings", "default_workers", "DEFAULT_CHUNK_PINGS"]
 
 #: pings imaged at once: 8 pings of the thesis' images are ~25 MB of complex images
 DEFAULT_CHUNK_PINGS = 8
+
+#: a chunk's candidate peaks are those above the threshold of its own noise fit with σ scaled by
+#: this (0.5: 6 dB below); the pooled σ falls below that only if the noise level changes by more
+#: than a factor 2 across the record, and that chunk is then imaged again
+BOUND_SIGMA_FACTOR = 0.5
 
 
 def record_pings(record, index):
@@ -60,42 +72,153 @@ def default_workers() -> int:
     return max(1, min(4, n))
 
 
-def _pooled_noise(record, settings: ProcessingSettings, *, noise_band_hz, chunk: int,
-                  noise_magnitudes=None, workers: int = 1):
-    """The pooled Rayleigh fit the detection settings ask for, or None (per-ping noise, a
-    threshold that needs none). Fitted on exactly the cells a single pass over every ping
-    would use."""
-    st = settings.detect
-    if st.noise.per_ping or not (st.needs_noise or st.noise.source != "image"):
-        return None
-    im_st = settings.image
-    if st.noise.source == "noise_file":
-        cells = [noise_magnitudes]
-        n_beams = noise_magnitudes.shape[-1]
-    else:
-        if st.noise.source == "region":
-            # only the noise region's rows: the same samples as in the full image
-            lo, hi = st.noise.range_m
-            if im_st.range_m is not None:
-                lo, hi = max(lo, im_st.range_m[0]), min(hi, im_st.range_m[1])
-            if hi > lo:
-                im_st = im_st.model_copy(update={"range_m": (lo, hi)})
-        def one(sl):
-            im = form_images(record_pings(record, sl), im_st, noise_band_hz=noise_band_hz)
-            mags = np.abs(im.image[:, im.group_index(st.image_group)])
-            return noise_cells(mags, st, im.range_m, im.beam_angle_rad), im.beam_angle_rad.size
+def _pools_image_noise(st) -> bool:
+    """Whether the settings pool one noise fit over the images of every ping (noise from the
+    images or a region of them, not per ping)."""
+    return (not st.noise.per_ping and st.noise.source in ("image", "region")
+            and (st.needs_noise or st.noise.source != "image"))
 
-        parts = _map(one, list(_chunks(record.samples.shape[0], chunk)), workers)
-        cells = [c for c, _ in parts]
-        n_beams = parts[0][1]
+
+def _file_noise(settings: ProcessingSettings, noise_magnitudes):
+    """The pooled fit of a noise-only dataset's cells (``noise.source: noise_file``), or None."""
+    st = settings.detect
+    if st.noise.per_ping or st.noise.source != "noise_file":
+        return None
+    return _pooled_fit(noise_magnitudes, st, noise_magnitudes.shape[-1],
+                       settings.image.interpolation)
+
+
+def _pooled_fit(cells, st, n_beams: int, upsample):
+    """Rayleigh fit of the cells; None when they carry no noise and the threshold needs none."""
     try:
-        fit = fit_noise_cells(np.concatenate(cells), st, n_beams=n_beams,
-                              upsample=im_st.interpolation)
+        return fit_noise_cells(cells, st, n_beams=n_beams, upsample=upsample)
     except NoiseEstimateError:
         if st.needs_noise:
             raise
         return None
-    return fit
+
+
+def _chunk_pose(pose, sl):
+    """The pose of a chunk's pings (a fixed pose is every ping's)."""
+    if pose is not None and np.ndim(pose[1]) == 3:
+        return np.asarray(pose[0])[sl], np.asarray(pose[1])[sl]
+    return pose
+
+
+def _kept(im, sl, keep):
+    """Copies of the images of the chosen pings in this chunk (a view would keep the chunk's)."""
+    return {k: replace(im, image=im.image[k - sl.start:k - sl.start + 1].copy()) for k in keep
+            if sl.start <= k < sl.stop}
+
+
+def _detect_chunk(record, settings: ProcessingSettings, volume, sl, *, fit, noise_band_hz, pose,
+                  noise_magnitudes, keep):
+    """Image a chunk and detect in it with a known pooled fit (or none): the chain's plain path."""
+    sub = record_pings(record, sl)
+    im = form_images(sub, settings.image, noise_band_hz=noise_band_hz)
+    det = detect_all(im, sub, settings.detect, volume, upsample=im.interpolation,
+                     pose=_chunk_pose(pose, sl), noise_magnitudes=noise_magnitudes, noise=fit)
+    det.table["ping"] = det.table["ping"] + sl.start
+    return det, _kept(im, sl, keep)
+
+
+@dataclass
+class _Pool:
+    """What one imaging pass keeps of a chunk while the pooled noise fit is not yet known.
+
+    ``cells``: its noise cells; ``thresholds``: those of its own noise fit (σ scaled by
+    :data:`BOUND_SIGMA_FACTOR` where the threshold depends on σ) and ``table`` the candidates
+    above them, or, where the threshold does not depend on σ, the final detections (only their
+    SNR awaits the pooled σ); ``table`` is None when the chunk had no noise of its own to bound
+    the threshold with.
+    """
+
+    sl: slice
+    cells: np.ndarray
+    n_beams: int
+    table: dict | None
+    thresholds: Thresholds | None
+    kept: dict
+
+
+def _pool_chunk(record, settings: ProcessingSettings, volume, sl, *, noise_band_hz, pose, keep):
+    """Image a chunk once: its noise cells and its candidate peaks (:class:`_Pool`)."""
+    st = settings.detect
+    sub = record_pings(record, sl)
+    im = form_images(sub, settings.image, noise_band_hz=noise_band_hz)
+    mags = np.abs(im.image[:, im.group_index(st.image_group)])
+    cells = noise_cells(mags, st, im.range_m, im.beam_angle_rad)
+    n_beams = im.beam_angle_rad.size
+    try:
+        own = fit_noise_cells(cells, st, n_beams=n_beams, upsample=im.interpolation)
+    except NoiseEstimateError:
+        own = None
+    if own is None and st.needs_noise:
+        return _Pool(sl, cells, n_beams, None, None, _kept(im, sl, keep))
+    if st.needs_noise:
+        sigma = own.sigma * BOUND_SIGMA_FACTOR
+        own = replace(own, sigma=sigma, mu=rayleigh_mean(sigma))
+    thr = ping_thresholds(mags, st, im.range_m, im.beam_angle_rad, volume,
+                          upsample=im.interpolation, noise=own)
+    table = candidates(im, sub, st, thr.per_ping, volume, pose=_chunk_pose(pose, sl),
+                       magnitudes=mags)
+    if not st.needs_noise:
+        # final already (the threshold ignores σ): select now, and keep no per-cell (CFAR)
+        # thresholds, which weigh as much as an image (the scalar summaries stay)
+        table = select(table, thr)
+        thr = replace(thr, per_ping=[])
+    return _Pool(sl, cells, n_beams, table, thr, _kept(im, sl, keep))
+
+
+def _from_pool(part: _Pool, fit: RayleighFit | None, st):
+    """A chunk's detections from its pool and the pooled fit, or None where the pool cannot
+    give them exactly (no bound, or the bound lies above the final threshold)."""
+    if part.table is None:
+        return None
+    final = part.thresholds.with_noise(fit, st)
+    if st.needs_noise:
+        if not all(np.all(f >= b) for f, b in zip(final.per_ping, part.thresholds.per_ping)):
+            return None
+        table = select(part.table, final)
+    else:
+        table = dict(part.table)
+        table["snr_db"] = snr_db(table["amplitude"], final.sigma[table["ping"]])
+    table["ping"] = table["ping"] + part.sl.start
+    return Detections(table, final.median, fit, final.pfa_cell, final.n_cells, [])
+
+
+def _fit_of_parts(parts, st, upsample: int):
+    """The pooled fit of every chunk's noise cells: the same cells in the same order as one
+    pass over every ping, hence the same fit."""
+    cells = np.concatenate([p.cells for p in parts])
+    for p in parts:
+        p.cells = None      # they can be every image's |I|: no second copy beyond this point
+    return _pooled_fit(cells, st, parts[0].n_beams, upsample)
+
+
+def _one_pass(record, settings: ProcessingSettings, volume, chunks, *, noise_band_hz, pose, keep,
+              workers: int):
+    """Detections of every chunk with a noise fit pooled over every ping's images, each ping
+    imaged once (again only for a chunk whose pool cannot give its detections exactly).
+
+    Returns
+    -------
+    fit : RayleighFit or None
+    results : list of (Detections, dict of kept images), in chunk order
+    """
+    st = settings.detect
+    parts = _map(lambda sl: _pool_chunk(record, settings, volume, sl, noise_band_hz=noise_band_hz,
+                                        pose=pose, keep=keep), chunks, workers)
+    if not parts:
+        return _pooled_fit(np.zeros(0), st, 1, settings.image.interpolation), []
+    fit = _fit_of_parts(parts, st, settings.image.interpolation)
+    dets = [_from_pool(p, fit, st) if fit is not None else None for p in parts]
+    redo = [p for p, d in zip(parts, dets) if d is None]
+    again = _map(lambda p: _detect_chunk(record, settings, volume, p.sl, fit=fit,
+                                         noise_band_hz=noise_band_hz, pose=pose,
+                                         noise_magnitudes=None, keep=())[0], redo, workers)
+    redone = dict(zip((p.sl.start for p in redo), again))
+    return fit, [(d if d is not None else redone[p.sl.start], p.kept) for p, d in zip(parts, dets)]
 
 
 def detect_record(record, settings: ProcessingSettings, volume: CountingVolume, *,
@@ -130,34 +253,27 @@ def detect_record(record, settings: ProcessingSettings, volume: CountingVolume, 
         The images of ``keep_pings``, in that order (None when none were asked for).
     """
     n = record.samples.shape[0]
-    chunk = max(1, int(chunk_pings))
+    chunks = list(_chunks(n, max(1, int(chunk_pings))))
     workers = default_workers() if workers is None else max(1, int(workers))
     st = settings.detect
-    fit = _pooled_noise(record, settings, noise_band_hz=noise_band_hz, chunk=chunk,
-                        noise_magnitudes=noise_magnitudes, workers=workers)
+    keep = [int(k) for k in keep_pings]
+    if _pools_image_noise(st):
+        fit, results = _one_pass(record, settings, volume, chunks, noise_band_hz=noise_band_hz,
+                                 pose=pose, keep=keep, workers=workers)
+    else:
+        fit = _file_noise(settings, noise_magnitudes)
+        results = _map(lambda sl: _detect_chunk(
+            record, settings, volume, sl, fit=fit, noise_band_hz=noise_band_hz, pose=pose,
+            noise_magnitudes=noise_magnitudes, keep=keep), chunks, workers)
     notes = []
     if fit is not None and not fit.rayleigh_like:
         msg = (f"the noise cells are not Rayleigh-like ({fit.describe()}): the derived threshold "
                f"may not hold its false-alarm rate")
         warnings.warn(msg, DetectionWarning, stacklevel=2)
         notes.append(msg)
-    keep = [int(k) for k in keep_pings]
-
-    def one(sl):
-        sub = record_pings(record, sl)
-        im = form_images(sub, settings.image, noise_band_hz=noise_band_hz)
-        sub_pose = pose
-        if pose is not None and np.ndim(pose[1]) == 3:   # per-ping poses: this chunk's
-            sub_pose = (np.asarray(pose[0])[sl], np.asarray(pose[1])[sl])
-        det = detect_all(im, sub, st, volume, upsample=im.interpolation, pose=sub_pose,
-                         noise_magnitudes=noise_magnitudes, noise=fit)
-        det.table["ping"] = det.table["ping"] + sl.start
-        kept = {k: im.pings(slice(k - sl.start, k - sl.start + 1)) for k in keep
-                if sl.start <= k < sl.stop}
-        return det, kept
 
     tables, thresholds, kept, last = [], [], {}, None
-    for det, k in _map(one, list(_chunks(n, chunk)), workers):
+    for det, k in results:
         tables.append(det.table)
         thresholds.append(det.threshold_per_ping)
         notes += [m for m in det.notes if m not in notes]

@@ -111,7 +111,9 @@ def compressed_spectra(samples, rfilter: RangeFilter):
     ndarray, shape (..., nfft), complex128
     """
     # double precision whatever the storage (float32 pairs on disk, complex64 in a record)
-    return sfft.fft(np.asarray(samples, np.complex128), rfilter.nfft, axis=-1) * rfilter.spectrum
+    spec = sfft.fft(np.asarray(samples, np.complex128), rfilter.nfft, axis=-1)
+    spec *= rfilter.spectrum
+    return spec
 
 
 def to_time(spectra, rfilter: RangeFilter, *, upsample: int = 1, keep=None):
@@ -133,16 +135,24 @@ def to_time(spectra, rfilter: RangeFilter, *, upsample: int = 1, keep=None):
     up = int(upsample)
     if up < 1:
         raise ValueError(f"interpolation factor must be >= 1, got {upsample}")
-    spec = spectra
     if up > 1:
-        n = rfilter.nfft
-        big = np.zeros(spec.shape[:-1] + (n * up,), complex)
-        h = (n + 1) // 2
-        big[..., :h] = spec[..., :h]
-        big[..., n * up - (n - h):] = spec[..., h:]
-        spec = big * up
-    out = sfft.ifft(spec, axis=-1)
+        out = sfft.ifft(_zero_padded(spectra, rfilter.nfft, up), axis=-1, overwrite_x=True)
+    else:
+        # double precision as documented, also for spectra stored in single precision
+        out = sfft.ifft(np.asarray(spectra, np.complex128), axis=-1)
     return out if keep is None else out[..., keep]
+
+
+def _zero_padded(spectra, n: int, up: int):
+    """The spectra (length n) zero-padded to n·U and scaled by U, shape (..., n·U), complex128."""
+    big = np.empty(np.shape(spectra)[:-1] + (n * up,), np.complex128)
+    h = (n + 1) // 2
+    tail = n * up - (n - h)
+    # the band's two halves are written scaled; only the gap between them needs zeros
+    np.multiply(spectra[..., :h], up, out=big[..., :h], dtype=np.complex128)
+    big[..., h:tail] = 0
+    np.multiply(spectra[..., h:], up, out=big[..., tail:], dtype=np.complex128)
+    return big
 
 
 def compress(samples, rfilter: RangeFilter, *, upsample: int = 1, keep=None):

@@ -32,7 +32,8 @@ from .settings import DetectSettings
 from .thresholds import cell_pfa, cfar_threshold, rayleigh_threshold
 
 __all__ = ["DetectionWarning", "Detections", "detect_all", "score_all", "n_tested_cells", "noise_cells",
-           "fit_noise_cells", "noise_fit", "Thresholds", "ping_thresholds", "candidates", "select"]
+           "fit_noise_cells", "noise_fit", "Thresholds", "ping_thresholds", "threshold_from_noise",
+           "candidates", "select", "snr_db"]
 
 
 class DetectionWarning(UserWarning):
@@ -181,7 +182,7 @@ def detect_all(images: Images, record, settings: DetectSettings, volume: Countin
                f"threshold may not hold its false-alarm rate")
         warnings.warn(msg, DetectionWarning, stacklevel=2)
         thr.notes.append(msg)
-    table = candidates(images, record, settings, thr.per_ping, volume, pose=pose)
+    table = candidates(images, record, settings, thr.per_ping, volume, pose=pose, magnitudes=mags)
     return Detections(select(table, thr), thr.median, thr.noise, thr.pfa_cell, thr.n_cells,
                       thr.notes)
 
@@ -214,6 +215,35 @@ class Thresholds:
     def floor(self, other: "Thresholds") -> "Thresholds":
         """The lower of two settings' thresholds, per ping and cell (for a shared candidate pool)."""
         return replace(self, per_ping=[np.minimum(a, b) for a, b in zip(self.per_ping, other.per_ping)])
+
+    def with_noise(self, fit: RayleighFit | None, settings: DetectSettings) -> "Thresholds":
+        """The thresholds the same images give with the pooled noise fit ``fit`` instead.
+
+        Only the noise scale changes: thresholds derived from it (``rayleigh``, ``fixed``) are
+        recomputed exactly as :func:`ping_thresholds` computes them; the others (``fixed`` in
+        counts, ``fraction_of_peak``, ``cfar``) do not depend on it and are kept.
+
+        Parameters
+        ----------
+        fit : RayleighFit or None
+            The pooled fit (None: no noise level, σ is NaN).
+        settings : DetectSettings
+            The settings these thresholds were computed with; the noise must be pooled (a
+            per-ping noise level is no single fit).
+
+        Returns
+        -------
+        Thresholds
+        """
+        if settings.noise.per_ping:
+            raise ValueError("a per-ping noise level cannot be replaced by one pooled fit")
+        n = self.median.size
+        sigma = fit.sigma if fit is not None else np.nan
+        per_ping, median = self.per_ping, self.median
+        if settings.method in ("rayleigh", "fixed"):
+            t = threshold_from_noise(settings, sigma, self.pfa_cell)
+            per_ping, median = [t] * n, np.full(n, t)
+        return replace(self, per_ping=per_ping, median=median, sigma=np.full(n, sigma), noise=fit)
 
 
 def ping_thresholds(mags, settings: DetectSettings, range_m, beam_angle_rad, volume: CountingVolume, *,
@@ -260,12 +290,8 @@ def ping_thresholds(mags, settings: DetectSettings, range_m, beam_angle_rad, vol
         sigma_p = fit.sigma if fit is not None else np.nan
         if st.needs_noise and st.noise.per_ping:
             sigma_p = noise_fit(mags[p:p + 1], st, r, th, upsample, noise_magnitudes).sigma
-        if st.method == "rayleigh":
-            thr = rayleigh_threshold(sigma_p, pfa, convention=st.convention)
-        elif st.method == "fixed":
-            mu_p = rayleigh_mean(sigma_p)
-            thr = float(st.value) * {"counts": 1.0, "noise_mean": mu_p,
-                                     "thesis": mu_p / st.thesis_noise_mean}[st.value_units]
+        if st.method in ("rayleigh", "fixed"):
+            thr = threshold_from_noise(st, sigma_p, pfa)
         elif st.method == "fraction_of_peak":
             thr = st.fraction * float(m.max()) if m.size else np.inf
         else:
@@ -280,8 +306,35 @@ def ping_thresholds(mags, settings: DetectSettings, range_m, beam_angle_rad, vol
     return Thresholds(per_ping, median, sigmas, fit, pfa, n_cells)
 
 
+def threshold_from_noise(settings: DetectSettings, sigma: float, pfa_cell: float | None) -> float:
+    """The scalar threshold of ``rayleigh`` and ``fixed`` detection (ADC counts).
+
+    Parameters
+    ----------
+    settings : DetectSettings
+        ``method`` rayleigh or fixed.
+    sigma : float
+        Rayleigh noise scale σ (ADC counts); NaN where none was estimated (fine for a fixed
+        threshold in counts).
+    pfa_cell : float or None
+        False-alarm probability per cell (rayleigh).
+
+    Returns
+    -------
+    float
+        Rises with σ (proportional to it, or independent of it in counts).
+    """
+    if settings.method == "rayleigh":
+        return rayleigh_threshold(sigma, pfa_cell, convention=settings.convention)
+    if settings.method != "fixed":
+        raise ValueError(f"a {settings.method!r} threshold is not a function of the noise level")
+    mu = rayleigh_mean(sigma)
+    return float(settings.value) * {"counts": 1.0, "noise_mean": mu,
+                                    "thesis": mu / settings.thesis_noise_mean}[settings.value_units]
+
+
 def candidates(images: Images, record, settings: DetectSettings, per_ping, volume: CountingVolume, *,
-               pose=None) -> dict:
+               pose=None, magnitudes=None) -> dict:
     """Every local maximum above a threshold, refined, located and flagged (one row each).
 
     Parameters
@@ -296,6 +349,8 @@ def candidates(images: Images, record, settings: DetectSettings, per_ping, volum
     volume : CountingVolume
     pose : (position_m (3,), rotation (3, 3)), optional
         Or one per ping: (n_pings, 3) and (n_pings, 3, 3).
+    magnitudes : ndarray, shape (n_pings, n_range, n_beams), optional
+        |I| of the image group detected on (ADC counts), where the caller has it already.
 
     Returns
     -------
@@ -304,7 +359,7 @@ def candidates(images: Images, record, settings: DetectSettings, per_ping, volum
     """
     g = images.group_index(settings.image_group)
     img = images.image[:, g]
-    mags = np.abs(img)
+    mags = np.abs(img) if magnitudes is None else magnitudes
     found = [local_maxima(mags[p], above=t) for p, t in enumerate(per_ping)]
     ping = np.concatenate([np.full(rows.size, p) for p, (rows, _) in enumerate(found)]).astype(int) \
         if found else np.zeros(0, int)
@@ -326,10 +381,29 @@ def select(table: dict, thresholds: Thresholds) -> dict:
     keep = table["cell_magnitude"] > thr
     out = {k: v[keep] for k, v in table.items() if k != "cell_magnitude"}
     out["threshold"] = thr[keep]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        out["snr_db"] = (20 * np.log10(out["amplitude"] / thresholds.sigma[out["ping"]])
-                         if keep.any() else np.zeros(0))
+    out["snr_db"] = snr_db(out["amplitude"], thresholds.sigma[out["ping"]])
     return out
+
+
+def snr_db(amplitude, sigma):
+    """Signal-to-noise ratio of detections, 20 log10(amplitude / σ) (dB).
+
+    Parameters
+    ----------
+    amplitude : ndarray, shape (n,)
+        Peak amplitudes (ADC counts).
+    sigma : ndarray, shape (n,)
+        Rayleigh noise scale behind each detection (ADC counts; NaN: no noise level).
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        NaN where σ is NaN.
+    """
+    if not np.size(amplitude):
+        return np.zeros(0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return 20 * np.log10(amplitude / sigma)
 
 
 def _describe(images, record, img, mags, ping, row, beam, volume, pose):

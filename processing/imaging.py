@@ -233,7 +233,8 @@ def form_images(record: SonarRecord, settings: ImageSettings | None = None, *,
     else:
         angles = default_beam_angles(first, lam, n_beams=st.n_beams, span_rad=st.azimuth_span)
         sel = np.ones(angles.size, bool)
-    out = np.empty((n_ping, len(groups), rows.size, int(sel.sum())), np.complex128)
+    beams = np.flatnonzero(sel)
+    out = np.empty((n_ping, len(groups), rows.size, beams.size), np.complex128)
     for p in range(n_ping):
         spec = compressed_spectra(record.samples[p], rf)
         for gi, (g, idx) in enumerate(groups.items()):
@@ -244,13 +245,13 @@ def form_images(record: SonarRecord, settings: ImageSettings | None = None, *,
                                           center_frequency_hz=record.center_frequency_hz,
                                           rate_hz=record.rate_hz)
                 img = np.swapaxes(to_time(bspec, rf, upsample=up, keep=keep), 0, 1)
+                out[p, gi] = img[:, sel]
             else:
                 y = to_time(spec[idx], rf, upsample=up, keep=keep)
                 if st.beamformer == "fft":
-                    _, img = beamform_fft(y, geo, n_beams, lam)
+                    beamform_fft(y, geo, n_beams, lam, beams=beams, out=out[p, gi])
                 else:
-                    img = beamform_das(y, geo, angles, lam)
-            out[p, gi] = img[:, sel]
+                    out[p, gi] = beamform_das(y, geo, angles, lam)[:, sel]
     angles = angles[sel]
     names = tuple(groups)
     gain = rf.noise_power_gain(noise_band_hz) * first.noise_power_gain()

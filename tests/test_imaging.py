@@ -247,6 +247,54 @@ def test_fft_beamforming_equals_delay_and_sum_at_its_angles():
     assert np.abs(img_fft - img_das).max() <= 1e-6 * np.abs(img_das).max()
 
 
+@pytest.mark.parametrize("n_beams", [8, 9, 32])
+def test_fft_beamforming_is_the_shifted_dft_with_the_phase_centre_correction(rng, n_beams):
+    """beamform_fft gathers its beams instead of shifting the whole DFT: the same numbers as
+    the textbook fftshift(DFT) · e^{−jk(x_0 − x_c) sin θ} / Σw (eq. 4.36–4.40), for any element
+    order, an odd number of beams and a subset of beams."""
+    order = rng.permutation(8)
+    d = 0.6 * LAMBDA_M
+    pos = np.zeros((8, 3))
+    pos[:, 0] = d * order
+    pos[:, 1] = 0.002
+    y = rng.normal(size=(2, 8, 50)) + 1j * rng.normal(size=(2, 8, 50))
+    geo = SubarrayGeometry(pos, "hamming")
+    w = window("hamming", 8)
+    spec = np.fft.fftshift(np.fft.fft(y[:, np.argsort(order)] * w[:, None], n_beams, axis=-2), axes=-2)
+    x0 = geo.positions_m[0, 0] - geo.center_m[0]
+    angles = np.arcsin((np.arange(n_beams) - n_beams // 2) * LAMBDA_M / (n_beams * d))
+    corr = np.exp(-1j * 2 * np.pi / LAMBDA_M * x0 * np.sin(angles)) / w.sum()
+    ref = np.swapaxes(spec * corr[:, None], -1, -2)
+    got_angles, got = beamform_fft(y, geo, n_beams, LAMBDA_M)
+    np.testing.assert_allclose(got_angles, angles, rtol=1e-12)
+    np.testing.assert_allclose(got, ref, rtol=1e-12, atol=1e-12 * np.abs(ref).max())
+    beams = np.arange(2, n_beams - 1)
+    out = np.empty((2, 50, beams.size), complex)
+    sub_angles, sub = beamform_fft(y, geo, n_beams, LAMBDA_M, beams=beams, out=out)
+    assert sub is out
+    np.testing.assert_array_equal(sub, got[..., beams])
+    np.testing.assert_array_equal(sub_angles, got_angles[beams])
+
+
+@pytest.mark.parametrize("upsample", [1, 3, 4])
+def test_interpolation_by_zero_padding_the_spectrum(rng, upsample):
+    """to_time pads the band-limited spectrum with zeros (the two halves scaled by U) whatever
+    the storage precision of the spectra."""
+    from processing.compression import to_time
+    rf = RangeFilter.design(np.exp(1j * rng.uniform(0, 6.3, 40)), n_samples=301, rate_hz=1e5,
+                            bandwidth_hz=2e4)
+    n = rf.nfft
+    spec = (rng.normal(size=(3, n)) + 1j * rng.normal(size=(3, n))).astype(np.complex64)
+    big = np.zeros((3, n * upsample), complex)
+    h = (n + 1) // 2
+    big[:, :h] = spec[:, :h]
+    big[:, n * upsample - (n - h):] = spec[:, h:]
+    ref = np.fft.ifft(big * upsample, axis=-1)
+    got = to_time(spec, rf, upsample=upsample, keep=slice(5, 400))
+    assert got.dtype == np.complex128
+    np.testing.assert_allclose(got, ref[:, 5:400], rtol=1e-12, atol=1e-12 * np.abs(ref).max())
+
+
 def test_phase_centre_correction_removes_the_phase_slope_across_beams(two):
     """eq. 4.40: the phase of a target's cells no longer slopes with beam index. What is left is
     the wavefront's curvature over the 0.12 m aperture at 17 m (k x²/2r, quadratic, ~0.05 rad)."""

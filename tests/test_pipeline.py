@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,8 +14,9 @@ import pytest
 import acoustics
 import processing
 from acoustics.scene import SceneWarning
-from processing.chain import detect_record
-from processing.detection import detect_all
+import processing.chain as chain
+from processing.chain import detect_record, record_pings
+from processing.detection import detect_all, fit_noise_cells, noise_cells
 from processing.imaging import form_images
 from processing.products import noise_band_of, pose_of, resolve_settings, volume_of
 
@@ -51,6 +53,147 @@ def test_chunked_detection_equals_processing_every_ping_at_once(pelagic, chunk, 
     assert set(det.table) == set(ref.table)
     for k, v in ref.table.items():
         np.testing.assert_array_equal(det.table[k], v, err_msg=k)
+
+
+def _two_pass(rec, st, vol, tree, chunk):
+    """The chain as it was: a first pass images the noise region's rows of every chunk for the
+    pooled fit, a second images every chunk again and detects with it."""
+    band, pose = noise_band_of(tree), pose_of(tree)
+    sts = [slice(p0, min(p0 + chunk, rec.samples.shape[0]))
+           for p0 in range(0, rec.samples.shape[0], chunk)]
+    im_st = st.image
+    if st.detect.noise.source == "region":
+        lo, hi = st.detect.noise.range_m
+        im_st = im_st.model_copy(update={"range_m": (max(lo, im_st.range_m[0]),
+                                                     min(hi, im_st.range_m[1]))})
+    cells = []
+    for sl in sts:
+        im = form_images(record_pings(rec, sl), im_st, noise_band_hz=band)
+        mags = np.abs(im.image[:, im.group_index(st.detect.image_group)])
+        cells.append(noise_cells(mags, st.detect, im.range_m, im.beam_angle_rad))
+    fit = fit_noise_cells(np.concatenate(cells), st.detect, n_beams=im.beam_angle_rad.size,
+                          upsample=st.image.interpolation)
+    parts = []
+    for sl in sts:
+        sub = record_pings(rec, sl)
+        im = form_images(sub, st.image, noise_band_hz=band)
+        det = detect_all(im, sub, st.detect, vol, upsample=im.interpolation, pose=pose, noise=fit)
+        det.table["ping"] = det.table["ping"] + sl.start
+        parts.append(det)
+    table = {k: np.concatenate([d.table[k] for d in parts]) for k in parts[0].table}
+    return table, np.concatenate([d.threshold_per_ping for d in parts]), fit
+
+
+def _assert_same_detections(table, ref):
+    """Same rows, same flags and indices, same numbers to float rounding."""
+    assert set(table) == set(ref)
+    for k, v in ref.items():
+        if np.asarray(v).dtype.kind == "f":
+            np.testing.assert_allclose(table[k], v, rtol=1e-12, atol=0, err_msg=k)
+        else:
+            np.testing.assert_array_equal(table[k], v, err_msg=k)
+
+
+def _with_detect(st, **update):
+    noise = update.pop("noise", {})
+    detect = st.detect.model_copy(update={**update,
+                                          "noise": st.detect.noise.model_copy(update=noise)})
+    return st.model_copy(update={"detect": detect})
+
+
+def _counting_images(monkeypatch):
+    """Count the chunks the chain images."""
+    calls = []
+
+    def counted(*args, **kwargs):
+        calls.append(args[0].samples.shape[0])
+        return form_images(*args, **kwargs)
+    monkeypatch.setattr(chain, "form_images", counted)
+    return calls
+
+
+@pytest.mark.filterwarnings("ignore::processing.detection.DetectionWarning")  # fish in the cells
+@pytest.mark.parametrize("update", [
+    {},                                                       # the default: Rayleigh, region
+    {"noise": {"source": "image", "estimator": "median"}},    # a pooled fit of whole images
+    {"method": "fixed", "value": 6.0, "value_units": "noise_mean"},
+    {"method": "cfar"},                                       # σ only for the SNR
+])
+def test_one_imaging_pass_detects_what_the_two_pass_chain_detected(pelagic, monkeypatch, update):
+    """Each ping is imaged once, and the detections, thresholds and pooled fit are those of the
+    chain that imaged every ping twice (noise first, detection second)."""
+    _, tree = pelagic
+    _, st, rec, vol = _all_at_once(tree)
+    st = _with_detect(st, **update)
+    ref, ref_thr, ref_fit = _two_pass(rec, st, vol, tree, chunk=5)
+    calls = _counting_images(monkeypatch)
+    det, _ = detect_record(rec, st, vol, noise_band_hz=noise_band_of(tree), pose=pose_of(tree),
+                           chunk_pings=5, workers=2)
+    assert calls == [5, 5, 2]
+    assert det.noise.sigma == pytest.approx(ref_fit.sigma, rel=1e-12)
+    np.testing.assert_allclose(det.threshold_per_ping, ref_thr, rtol=1e-12)
+    assert det.table["ping"].size > 0
+    _assert_same_detections(det.table, ref)
+
+
+@pytest.mark.parametrize("update", [
+    {"noise": {"per_ping": True}},
+    {"method": "cfar", "noise": {"source": "image"}},
+    {"method": "fraction_of_peak", "noise": {"source": "image"}},
+    {"method": "fixed", "value": 50.0, "value_units": "counts", "noise": {"source": "image"}},
+])
+def test_settings_without_a_pooled_noise_fit_image_each_ping_once(pelagic, monkeypatch, update):
+    _, tree = pelagic
+    ref, st, rec, vol = _all_at_once(tree)
+    st = _with_detect(st, **update)
+    im = form_images(rec, st.image, noise_band_hz=noise_band_of(tree))
+    ref = detect_all(im, rec, st.detect, vol, upsample=im.interpolation, pose=pose_of(tree))
+    calls = _counting_images(monkeypatch)
+    det, _ = detect_record(rec, st, vol, noise_band_hz=noise_band_of(tree), pose=pose_of(tree),
+                           chunk_pings=5, workers=2)
+    assert calls == [5, 5, 2]
+    _assert_same_detections(det.table, ref.table)
+
+
+@pytest.mark.parametrize("factor", [1.0, 3.0])
+def test_a_chunk_whose_candidate_bound_is_too_high_is_imaged_again(pelagic, monkeypatch, factor):
+    """The candidates of a chunk are those above a bound of the final threshold; where the
+    pooled threshold falls below it (forced here by raising the bound to the chunk's own σ, or
+    3 times it) the chunk is imaged and detected again, and nothing changes."""
+    _, tree = pelagic
+    ref, st, rec, vol = _all_at_once(tree)
+    calls = _counting_images(monkeypatch)
+    monkeypatch.setattr(chain, "BOUND_SIGMA_FACTOR", factor)
+    det, _ = detect_record(rec, st, vol, noise_band_hz=noise_band_of(tree), pose=pose_of(tree),
+                           chunk_pings=3, workers=2)
+    n_chunks = 4
+    if factor == 3.0:   # the bound lies above every chunk's threshold: all imaged twice
+        assert len(calls) == 2 * n_chunks
+    else:               # some chunk's own σ is at least the pooled one; maybe equal
+        assert n_chunks <= len(calls) < 2 * n_chunks
+    assert det.noise.sigma == ref.noise.sigma
+    np.testing.assert_array_equal(det.threshold_per_ping, ref.threshold_per_ping)
+    _assert_same_detections(det.table, ref.table)
+
+
+@pytest.mark.filterwarnings("ignore::processing.detection.DetectionWarning")  # zeros in the cells
+def test_a_noise_free_chunk_is_detected_with_the_pooled_fit(pelagic, monkeypatch):
+    """A chunk without noise of its own has no bound for its candidates: it is imaged again
+    once the pooled fit is known, and detects what processing every ping at once detects."""
+    _, tree = pelagic
+    _, st, rec, vol = _all_at_once(tree)
+    samples = np.array(np.asarray(rec.samples))
+    samples[:3] = 0
+    rec = replace(rec, samples=samples)
+    im = form_images(rec, st.image, noise_band_hz=noise_band_of(tree))
+    ref = detect_all(im, rec, st.detect, vol, upsample=im.interpolation, pose=pose_of(tree))
+    calls = _counting_images(monkeypatch)
+    det, _ = detect_record(rec, st, vol, noise_band_hz=noise_band_of(tree), pose=pose_of(tree),
+                           chunk_pings=3, workers=1)
+    assert len(calls) == 5     # the 4 chunks, and the noise-free one again
+    assert det.noise.sigma == ref.noise.sigma
+    assert not np.isin(det.table["ping"], [0, 1, 2]).any()
+    _assert_same_detections(det.table, ref.table)
 
 
 def test_kept_images_are_those_of_the_chosen_pings(pelagic):
