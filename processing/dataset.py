@@ -22,13 +22,17 @@ a half file under the final name.
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
+from . import lean_xarray
 from .atomic import staged
+
+lean_xarray.install()     # before any variable is wrapped: no Dask import to answer "is it Dask?"
 
 __all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "ping_indices", "TRUTH_GROUP",
            "write_tree", "write_dataset", "check_finite", "NAN_MEANS", "open_tree", "tree_pings", "source_of", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
@@ -73,6 +77,23 @@ def _encoding(tree: xr.DataTree) -> dict:
     return enc
 
 
+@contextmanager
+def _small_chunk_cache(size_bytes: int = 4 << 20):
+    """HDF5's chunk cache for the files opened inside, ``size_bytes`` per variable.
+
+    netCDF's default is 64 MB per variable, and a write that hands HDF5 a whole variable keeps
+    its chunks there until the file closes: the 100 pings of the default scene cost 2 × 26 MB
+    more resident memory (measured: +82 → +34 MB during the write) and 40 % more time. Every
+    chunk is written whole, once, so a cache that holds a few chunks loses nothing."""
+    import netCDF4
+    previous = netCDF4.get_chunk_cache()
+    netCDF4.set_chunk_cache(size_bytes)
+    try:
+        yield
+    finally:
+        netCDF4.set_chunk_cache(*previous)
+
+
 def write_tree(tree: xr.DataTree, path: str | Path, *, fmt: str | None = None) -> Path:
     """Write a dataset atomically as NetCDF4 (default) or Zarr.
 
@@ -97,7 +118,8 @@ def write_tree(tree: xr.DataTree, path: str | Path, *, fmt: str | None = None) -
         check_finite(node.ds, where=f"{path}: /{node.path.strip('/')}")
     with staged(path) as tmp:
         if fmt == "netcdf":
-            tree.to_netcdf(tmp, engine="netcdf4", encoding=_encoding(tree) or None)
+            with _small_chunk_cache():
+                tree.to_netcdf(tmp, engine="netcdf4", encoding=_encoding(tree) or None)
         else:
             tree.to_zarr(tmp, mode="w", consolidated=False, zarr_format=2)
     return path
