@@ -16,8 +16,8 @@ import uuid
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["staged", "write_bytes_atomic", "write_text_atomic", "remove_path", "remove_stale",
-           "remove_active", "TMP_MARK", "ACTIVE"]
+__all__ = ["staged", "scratch", "write_bytes_atomic", "write_text_atomic", "remove_path",
+           "remove_stale", "remove_active", "TMP_MARK", "ACTIVE"]
 
 #: marks the temporaries of :func:`staged` (``.NAME.tmp-<pid>-<random>``)
 TMP_MARK = ".tmp-"
@@ -120,6 +120,32 @@ def staged(path, *, suffix: str = ""):
         remove_path(tmp)
         raise
     finally:
+        ACTIVE.discard(tmp)
+
+
+@contextmanager
+def scratch(folder, name: str):
+    """Yield a new temporary folder ``folder/.NAME.tmp-<pid>-<random>`` for work that will be
+    moved into a :func:`staged` output when it is done (e.g. figures drawn before their output
+    folder exists); whatever is left of it is removed on exit, and by the next write of the same
+    name if this process is killed.
+
+    Parameters
+    ----------
+    folder : str or Path
+        Where the temporary lives: on the filesystem of the output it will be moved into.
+    name : str
+        Names the temporary (``.NAME.tmp-...``).
+    """
+    folder = Path(folder)
+    remove_stale(folder, name)
+    tmp = folder / f".{name}{TMP_MARK}{os.getpid()}-{uuid.uuid4().hex[:8]}"
+    ACTIVE.add(tmp)
+    try:
+        tmp.mkdir()
+        yield tmp
+    finally:
+        remove_path(tmp)
         ACTIVE.discard(tmp)
 
 

@@ -11,9 +11,14 @@ import numpy as np
 from scipy.ndimage import map_coordinates
 
 from .atomic import staged
-from .dataset import TRUTH_GROUP
 
-__all__ = ["fan_beam", "plot_fan", "plot_range_profiles", "plot_phase_map", "save", "fixed_layout"]
+__all__ = ["fan_beam", "plot_fan", "plot_range_profiles", "plot_phase_map", "save", "fixed_layout",
+           "image_figures", "image_figure_data", "draw_image_figures", "count_figures",
+           "count_figure_data", "draw_detection_figure", "draw_counts_figure", "PNG_COMPRESS_LEVEL"]
+
+#: zlib level of the PNGs: 3 encodes the run's figures in half the time of the default 6, for
+#: files ≈ 10 % larger (measured on the default scene's 11 figures: 0.60 → 0.35 s, 1.9 → 2.1 MB)
+PNG_COMPRESS_LEVEL = 3
 
 
 def fan_beam(magnitude, range_m, beam_angle_rad, *, pixel_m: float | None = None,
@@ -160,8 +165,32 @@ def save(fig, path: Path):
     """Write a figure atomically (temporary file, then rename)."""
     path = Path(path)
     with staged(path, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=110)
+        fig.savefig(tmp, dpi=110, pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL})
     return path
+
+
+def image_figure_data(images, *, ping: int = 0) -> dict:
+    """What :func:`draw_image_figures` draws for one ping, as plain arrays (cheap to send to
+    another process).
+
+    Parameters
+    ----------
+    images : Images
+        Of that ping alone (:func:`processing.products.figure_images`) or of every ping
+        (``ping`` picks one).
+    ping : int
+
+    Returns
+    -------
+    dict
+        ``image`` (n_groups, n_range, n_beams) complex, ``groups``, ``range_m`` (n_range,),
+        ``beam_angle_rad`` (n_beams,), ``psi_rad`` (n_range, n_beams) or None, ``ping``.
+    """
+    k = 0 if images.image.shape[0] == 1 else ping
+    psi = images.psi_rad[k] if images.psi_rad is not None else None
+    return {"image": images.image[k], "groups": tuple(images.groups),
+            "range_m": np.asarray(images.range_m), "beam_angle_rad": np.asarray(images.beam_angle_rad),
+            "psi_rad": psi, "ping": int(ping)}
 
 
 def image_figures(images, outdir: Path, *, ping: int = 0) -> list[Path]:
@@ -169,16 +198,19 @@ def image_figures(images, outdir: Path, *, ping: int = 0) -> list[Path]:
 
     ``images``: an :class:`~processing.imaging.Images` of that ping alone (titles say ``ping``)
     or of every ping (``ping`` picks one)."""
+    return draw_image_figures(image_figure_data(images, ping=ping), outdir)
+
+
+def draw_image_figures(data: dict, outdir: Path) -> list[Path]:
+    """The figures of :func:`image_figures` from :func:`image_figure_data`."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
-    # images of just this ping (processing.products.figure_images), or of every ping
-    img = images.image[0 if images.image.shape[0] == 1 else ping]
-    groups = images.groups
-    r, th = images.range_m, images.beam_angle_rad
+    img, groups, ping = data["image"], data["groups"], data["ping"]
+    r, th = data["range_m"], data["beam_angle_rad"]
     paths = []
     fig, axes = plt.subplots(1, len(groups), figsize=(5.5 * len(groups), 7), squeeze=False)
     fixed_layout(fig, left=0.7, right=0.9, wspace=0.5)
@@ -203,10 +235,10 @@ def image_figures(images, outdir: Path, *, ping: int = 0) -> list[Path]:
     ax.set_title(f"range profiles, subarray {groups[0]}, ping {ping}")
     paths.append(save(fig, outdir / "range_profiles.png"))
     plt.close(fig)
-    if images.psi_rad is not None:
+    if data["psi_rad"] is not None:
         fig, ax = plt.subplots(figsize=(6.5, 6))
         fixed_layout(fig, left=0.7, right=0.1)
-        plot_phase_map(ax, images.psi_rad[0 if images.image.shape[0] == 1 else ping], np.abs(img[0]), r, th)
+        plot_phase_map(ax, data["psi_rad"], np.abs(img[0]), r, th)
         ax.set_title(f"interferometric phase ψ_AB, ping {ping}")
         paths.append(save(fig, outdir / "phase.png"))
         plt.close(fig)
@@ -218,84 +250,135 @@ def count_figures(tree, outdir: Path, *, pings=(0,), max_pings: int = 5,
     """detections_ping<k>.png (fan-beam image with detections, thesis Appendix B; and the 3-D
     positions seen from above and from the side) and, with ``counts``, counts.png (counts and
     errors vs ping)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    data = count_figure_data(tree, pings=pings, max_pings=max_pings, counts=counts)
+    paths = [draw_detection_figure(d, outdir) for d in data["detections"]]
+    if data["counts"] is not None:
+        paths.append(draw_counts_figure(data["counts"], outdir))
+    return paths
 
+
+def count_figure_data(tree, *, pings=(0,), max_pings: int = 5, counts: bool = True) -> dict:
+    """What :func:`count_figures` draws, as plain arrays (cheap to send to another process).
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        A counted dataset (/Processing/Detections and Counts).
+    pings : iterable of int
+        Pings (file indices) to draw detections of; at most ``max_pings``.
+    counts : bool
+        Whether to gather the per-ping counts for counts.png.
+
+    Returns
+    -------
+    dict
+        ``detections``: one dict per ping (``magnitude`` (n_range, n_beams) of image group 0,
+        ``range_m`` (n_range,), ``beam_angle_rad`` (n_beams,), ``ping_index``, ``fan_x_m`` and
+        ``fan_z_m`` (n_det,) and ``position_m`` (n_det, 3, sonar frame) of the detections,
+        ``in_volume`` (n_det,), ``truth_m`` (n_true, 3) or None, ``counting_range_m`` (2,),
+        ``azimuth_halfwidth_rad``, ``elevation_halfwidth_rad``); ``counts``: arrays of shape
+        (n_pings,) (ping_index, counts, errors, density in m⁻³), or None.
+    """
+    from .dataset import TRUTH_GROUP
     from .products import counts_of, detections_of, figure_images
 
-    outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
     pings = list(pings)[:max_pings]
     im = figure_images(tree, pings)
     det = {k: v.values for k, v in detections_of(tree).data_vars.items()}
-    counts = counts_of(tree)
-    cnt = {k: v.values for k, v in counts.variables.items()}
-    r, th = im.range_m, im.beam_angle_rad
-    paths = []
+    cnt = {k: v.values for k, v in counts_of(tree).variables.items()}
     truth = None
     if TRUTH_GROUP in tree.children and "target_x" in tree[TRUTH_GROUP].ds:
         gt = tree[TRUTH_GROUP].ds
         truth = (gt["target_ping_index"].values, np.stack([gt[f"target_{a}"].values for a in "xyz"], -1))
-    g = 0
+    attrs = tree["Processing/Detections"].ds.attrs
+    volume = {"azimuth_halfwidth_rad": float(attrs["counting_azimuth_halfwidth_rad"]),
+              "elevation_halfwidth_rad": float(attrs["counting_elevation_halfwidth_rad"]),
+              "counting_range_m": tuple(float(v) for v in attrs["counting_range_m"])}
+    out = []
     for i, p in enumerate(pings):
         k = det["ping"] == p
-        fig, axes = plt.subplots(1, 3, figsize=(16, 6))
-        fixed_layout(fig, left=0.7, right=0.2, wspace=0.3)
-        xs = det["range_m"][k] * np.sin(det["azimuth_rad"][k])
-        zs = det["range_m"][k] * np.cos(det["azimuth_rad"][k])
-        plot_fan(axes[0], np.abs(im.image[i, g]), r, th,
-                 title=f"ping {int(cnt['ping_index'][p])}: {int(k.sum())} detections",
-                 detections=(xs, zs))
-        inside = det["in_volume"][k]
-        for ax, (i, j, lab) in zip(axes[1:], ((0, 2, "x (m)"), (1, 2, "y (m)"))):
-            pos = np.stack([det["x_m"][k], det["y_m"][k], det["z_m"][k]], -1)
-            if truth is not None:
-                tp = truth[1][truth[0] == cnt["ping_index"][p]]
-                ax.plot(tp[:, i], tp[:, j], ".", color="0.6", ms=4, label="true targets")
-            ax.plot(pos[~inside, i], pos[~inside, j], "x", color="tab:orange", label="located, outside volume")
-            ax.plot(pos[inside, i], pos[inside, j], "o", mfc="none", mec="tab:green", ms=8,
-                    label="located, inside volume")
-            ax.set_xlabel(f"sonar {lab}")
-            ax.set_ylabel("sonar z (m)")
-            ax.grid(alpha=0.3)
-        az_h = float(tree["Processing/Detections"].ds.attrs["counting_azimuth_halfwidth_rad"])
-        el_h = float(tree["Processing/Detections"].ds.attrs["counting_elevation_halfwidth_rad"])
-        r0, r1 = tree["Processing/Detections"].ds.attrs["counting_range_m"]
-        for ax, hw in ((axes[1], az_h), (axes[2], el_h)):
-            rr = np.array([r0, r1])
-            for s in (-1, 1):
-                ax.plot(s * rr * np.sin(hw), rr * np.cos(hw), "k-", lw=0.8)
-        axes[1].set_title("seen from above (x–z): counting volume in azimuth")
-        axes[2].set_title("seen from the side (y–z): counting volume in elevation")
-        axes[2].set_xlim(-1.5, 1.5)
-        axes[1].legend(fontsize=8, loc="lower left")
-        paths.append(save(fig, outdir / f"detections_ping{int(cnt['ping_index'][p])}.png"))
-        plt.close(fig)
-    if not counts:
-        return paths
+        ping_index = int(cnt["ping_index"][p])
+        out.append({"magnitude": np.abs(im.image[i, 0]), "range_m": np.asarray(im.range_m),
+                    "beam_angle_rad": np.asarray(im.beam_angle_rad), "ping_index": ping_index,
+                    "fan_x_m": det["range_m"][k] * np.sin(det["azimuth_rad"][k]),
+                    "fan_z_m": det["range_m"][k] * np.cos(det["azimuth_rad"][k]),
+                    "position_m": np.stack([det["x_m"][k], det["y_m"][k], det["z_m"][k]], -1),
+                    "in_volume": det["in_volume"][k],
+                    "truth_m": truth[1][truth[0] == ping_index] if truth is not None else None,
+                    **volume})
+    keys = ("ping_index", "true_in_volume", "count_before", "count_after", "error_before",
+            "error_after", "density_per_m3")
+    return {"detections": out,
+            "counts": {k: cnt[k] for k in keys if k in cnt} if counts else None}
+
+
+def draw_detection_figure(d: dict, outdir: Path) -> Path:
+    """detections_ping<k>.png from one entry of :func:`count_figure_data`."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(1, 3, figsize=(16, 6))
+    fixed_layout(fig, left=0.7, right=0.2, wspace=0.3)
+    inside = d["in_volume"]
+    plot_fan(axes[0], d["magnitude"], d["range_m"], d["beam_angle_rad"],
+             title=f"ping {d['ping_index']}: {inside.size} detections",
+             detections=(d["fan_x_m"], d["fan_z_m"]))
+    pos, tp = d["position_m"], d["truth_m"]
+    for ax, (i, j, lab) in zip(axes[1:], ((0, 2, "x (m)"), (1, 2, "y (m)"))):
+        if tp is not None:
+            ax.plot(tp[:, i], tp[:, j], ".", color="0.6", ms=4, label="true targets")
+        ax.plot(pos[~inside, i], pos[~inside, j], "x", color="tab:orange", label="located, outside volume")
+        ax.plot(pos[inside, i], pos[inside, j], "o", mfc="none", mec="tab:green", ms=8,
+                label="located, inside volume")
+        ax.set_xlabel(f"sonar {lab}")
+        ax.set_ylabel("sonar z (m)")
+        ax.grid(alpha=0.3)
+    rr = np.array(d["counting_range_m"])
+    for ax, hw in ((axes[1], d["azimuth_halfwidth_rad"]), (axes[2], d["elevation_halfwidth_rad"])):
+        for s in (-1, 1):
+            ax.plot(s * rr * np.sin(hw), rr * np.cos(hw), "k-", lw=0.8)
+    axes[1].set_title("seen from above (x–z): counting volume in azimuth")
+    axes[2].set_title("seen from the side (y–z): counting volume in elevation")
+    axes[2].set_xlim(-1.5, 1.5)
+    axes[1].legend(fontsize=8, loc="lower left")
+    path = save(fig, outdir / f"detections_ping{d['ping_index']}.png")
+    plt.close(fig)
+    return path
+
+
+def draw_counts_figure(c: dict, outdir: Path) -> Path:
+    """counts.png (counts and errors vs ping) from the ``counts`` of :func:`count_figure_data`."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
     fig, axes = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
     fixed_layout(fig, left=0.8, hspace=0.15)
-    x = cnt["ping_index"]
-    if "true_in_volume" in cnt:
-        axes[0].plot(x, cnt["true_in_volume"], "k-", lw=1.2, label="true, in volume")
-    axes[0].plot(x, cnt["count_before"], "-", color="tab:orange", label="detected in span (before interferometry)")
-    axes[0].plot(x, cnt["count_after"], "-", color="tab:green", label="counted in volume (after)")
+    x = c["ping_index"]
+    if "true_in_volume" in c:
+        axes[0].plot(x, c["true_in_volume"], "k-", lw=1.2, label="true, in volume")
+    axes[0].plot(x, c["count_before"], "-", color="tab:orange", label="detected in span (before interferometry)")
+    axes[0].plot(x, c["count_after"], "-", color="tab:green", label="counted in volume (after)")
     axes[0].set_ylabel("targets per ping (count)")
     axes[0].set_xlabel("ping index")
     axes[0].legend(fontsize=8)
     axes[0].grid(alpha=0.3)
-    if "error_before" in cnt:
-        axes[1].plot(x, cnt["error_before"], "-", color="tab:orange", label="before interferometry")
-        axes[1].plot(x, cnt["error_after"], "-", color="tab:green", label="after interferometry")
+    if "error_before" in c:
+        axes[1].plot(x, c["error_before"], "-", color="tab:orange", label="before interferometry")
+        axes[1].plot(x, c["error_after"], "-", color="tab:green", label="after interferometry")
         axes[1].axhline(0, color="k", lw=0.8)
         axes[1].set_ylabel("count error, counted − true (targets)")
         axes[1].legend(fontsize=8)
     else:
-        axes[1].plot(x, cnt["density_per_m3"], "-", color="tab:green")
+        axes[1].plot(x, c["density_per_m3"], "-", color="tab:green")
         axes[1].set_ylabel("density (m⁻³)")
     axes[1].set_xlabel("ping index")
     axes[1].grid(alpha=0.3)
-    paths.append(save(fig, outdir / "counts.png"))
+    path = save(fig, outdir / "counts.png")
     plt.close(fig)
-    return paths
+    return path

@@ -2,9 +2,12 @@
 
 The run folder appears complete or not at all: the numbers (dataset, detections, counts, the
 resolved scene, the beam table) are written into a hidden staging folder next to it, which is
-renamed into place when they are all there. Figures come after the numbers are saved, each
-figure folder again staged and renamed, so a failure or Ctrl-C while drawing never costs the
-numbers and never leaves half a folder.
+renamed into place when they are all there. Figure folders appear after the numbers are saved,
+each again staged and renamed, so a failure or Ctrl-C while drawing never costs the numbers and
+never leaves half a folder. The figures are drawn by a helper process
+(:mod:`acoustics.cli.figure_worker`) beside this one: it starts importing matplotlib at once,
+draws the first ping's images (into a hidden scratch folder) while the pings are processed, and
+shares the remaining figures with this process once the numbers are saved.
 """
 from __future__ import annotations
 
@@ -46,6 +49,7 @@ def default_run_folder(name: str) -> Path:
 
 def command(args) -> int:
     import time
+    from contextlib import ExitStack
 
     import processing
     from acoustics.cli.beams import beam_numbers
@@ -55,42 +59,52 @@ def command(args) -> int:
     from processing.dataset import write_tree
     log = StageLog()
     log.add("start", time.perf_counter() - _T0)
-    with log.stage("load"):
-        scene = load(args.scene)
-    if args.output:
-        outdir = check_output(args.output, overwrite=args.overwrite, folder=True)
-    else:   # runs/<name>: the one folder abacus creates for you
-        outdir = default_run_folder(scene.name)
-        outdir.parent.mkdir(exist_ok=True)
-        outdir = check_output(outdir, overwrite=args.overwrite, folder=True)
-    pings = ping_list(scene, args.pings)
-    check_scene_resources(scene, args, pings=len(pings) if pings else None, images=args.images,
-                          output=outdir / "run.nc", figures=args.plots)
-    print(f"scene '{scene.name}' ({args.scene}): {scene.pings.count} ping(s), "
-          f"sha256 {scene.sha256()[:12]}")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        with log.stage("simulate"):
-            tree = simulate(scene, pings=pings, progress=Progress("simulate"))
-        with log.stage("process"):
-            tree = processing.count(tree, images=args.images)
-            result = processing.count_summary(tree)
-    notes = run_notes(tree, caught)
-    result["summary"]["warnings"] = notes
-    with log.stage("write"), staged(outdir) as tmp:
-        tmp.mkdir()
-        write_tree(tree, tmp / "run.nc")
-        processing.write_csv(tree, tmp / "detections.csv")
-        write_text_atomic(tmp / "counts.json", json.dumps(result, indent=1))
-        write_text_atomic(tmp / "scene.resolved.yaml", scene.resolved_text())
-        write_text_atomic(tmp / "beams.json", json.dumps(beam_numbers(scene), indent=1))
-    print()
-    print(processing.format_counts(result))
-    made = "run.nc (dataset), detections.csv, counts.json, beams.json, scene.resolved.yaml"
-    if args.plots:
-        with log.stage("figures"):
-            _figures(scene, tree, outdir)
-        made += ", images/, counts/, beams/"
+    with ExitStack() as stack:
+        # the figure helper starts first: it imports matplotlib while this process computes
+        figures = None
+        if args.plots:
+            from acoustics.cli.figure_worker import FigureWorker
+            figures = stack.enter_context(FigureWorker())
+        with log.stage("load"):
+            scene = load(args.scene)
+        if args.output:
+            outdir = check_output(args.output, overwrite=args.overwrite, folder=True)
+        else:   # runs/<name>: the one folder abacus creates for you
+            outdir = default_run_folder(scene.name)
+            outdir.parent.mkdir(exist_ok=True)
+            outdir = check_output(outdir, overwrite=args.overwrite, folder=True)
+        pings = ping_list(scene, args.pings)
+        check_scene_resources(scene, args, pings=len(pings) if pings else None, images=args.images,
+                              output=outdir / "run.nc", figures=args.plots)
+        print(f"scene '{scene.name}' ({args.scene}): {scene.pings.count} ping(s), "
+              f"sha256 {scene.sha256()[:12]}")
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with log.stage("simulate"):
+                tree = simulate(scene, pings=pings, progress=Progress("simulate"))
+            early = None
+            if figures is not None:
+                # the first ping's images depend on nothing later: drawn while the rest is processed
+                early = _draw_image_figures_early(stack, figures, tree, outdir)
+            with log.stage("process"):
+                tree = processing.count(tree, images=args.images)
+                result = processing.count_summary(tree)
+        notes = run_notes(tree, caught)
+        result["summary"]["warnings"] = notes
+        with log.stage("write"), staged(outdir) as tmp:
+            tmp.mkdir()
+            write_tree(tree, tmp / "run.nc")
+            processing.write_csv(tree, tmp / "detections.csv")
+            write_text_atomic(tmp / "counts.json", json.dumps(result, indent=1))
+            write_text_atomic(tmp / "scene.resolved.yaml", scene.resolved_text())
+            write_text_atomic(tmp / "beams.json", json.dumps(beam_numbers(scene), indent=1))
+        print()
+        print(processing.format_counts(result))
+        made = "run.nc (dataset), detections.csv, counts.json, beams.json, scene.resolved.yaml"
+        if figures is not None:
+            with log.stage("figures"):
+                _figures(scene, tree, outdir, figures, early)
+            made += ", images/, counts/, beams/"
     for note in notes:
         print(f"warning: {note}", file=sys.stderr)
     print(f"\noutputs in {outdir}/: {made}")
@@ -116,16 +130,42 @@ def run_notes(tree, caught) -> list[str]:
     return notes
 
 
-def _figures(scene, tree, outdir: Path):
-    """The run's figures, drawn after its numbers are saved (each folder staged)."""
+def _draw_image_figures_early(stack, figures, tree, outdir: Path):
+    """Send the first ping's image figures to the helper, to be drawn into a scratch folder
+    next to the run folder (which does not exist until the numbers are saved); returns
+    (folder, ticket)."""
+    from processing.atomic import scratch
+    from processing.plots import image_figure_data
+    from processing.products import figure_images
+    # named so that any later write of the run folder removes it if this process is killed
+    folder = stack.enter_context(scratch(outdir.parent, f"{outdir.name}.images"))
+    data = image_figure_data(figure_images(tree, [0]), ping=0)
+    return folder, figures.submit("draw_image_figures", data, folder)
+
+
+def _figures(scene, tree, outdir: Path, figures, early):
+    """The run's figures, after its numbers are saved (each folder staged): the helper draws the
+    images (begun while processing) and the first detection figures; this process draws the
+    rest — the two share the machine's cores."""
+    import os
+
     from acoustics.cli.beams import beam_figures
     from processing.atomic import staged
-    from processing.plots import count_figures, image_figures
-    from processing.products import figure_images
+    from processing.plots import count_figure_data, draw_counts_figure, draw_detection_figure
     n = tree["Processing/Counts"].sizes["ping_time"]
-    with staged(outdir / "images") as tmp:
-        image_figures(figure_images(tree, [0]), tmp, ping=0)
-    with staged(outdir / "counts") as tmp:
-        count_figures(tree, tmp, pings=range(min(n, 3)))
-    with staged(outdir / "beams") as tmp:
-        beam_figures(scene, tmp)
+    data = count_figure_data(tree, pings=range(min(n, 3)))
+    mine = data["detections"][-1:] if len(data["detections"]) > 1 else []
+    with staged(outdir / "counts") as tmp_counts:
+        tickets = [figures.submit("draw_detection_figure", d, tmp_counts)
+                   for d in data["detections"][:len(data["detections"]) - len(mine)]]
+        for d in mine:
+            draw_detection_figure(d, tmp_counts)
+        draw_counts_figure(data["counts"], tmp_counts)
+        with staged(outdir / "beams") as tmp:
+            beam_figures(scene, tmp)
+        folder, ticket = early
+        figures.result(ticket)
+        with staged(outdir / "images") as tmp:
+            os.replace(folder, tmp)
+        for t in tickets:
+            figures.result(t)

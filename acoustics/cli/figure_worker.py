@@ -1,0 +1,200 @@
+"""Figures drawn by a helper process while the command computes.
+
+matplotlib draws on one core and holds the GIL; abacus' physics and processing leave part of
+the machine idle (start-up, single-threaded stretches, writing the dataset). A command that
+draws figures starts :class:`FigureWorker` first: the helper imports matplotlib and warms its
+fonts while the command imports and simulates, then draws the jobs it is sent — figures of the
+data of :mod:`processing.plots` (plain arrays, pickled over a pipe) — in order, into the
+folders it is told (the command's staged temporaries), and answers each with the files written.
+
+The helper never outlives the command: it ignores SIGINT (the command handles Ctrl-C and ends
+it), is killed with the command (``PR_SET_PDEATHSIG`` on Linux) and by :func:`stop_all`, which
+the CLI's exit path calls before it removes the temporaries the helper may be writing into.
+A job that fails comes back as :class:`FigureError` with the helper's traceback.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+__all__ = ["FigureWorker", "FigureError", "stop_all", "JOBS"]
+
+#: what a helper can be asked to draw: name -> processing.plots function(data, outdir)
+JOBS = ("draw_image_figures", "draw_detection_figure", "draw_counts_figure")
+
+#: workers of this process still running (for :func:`stop_all`)
+_LIVE: set = set()
+
+
+class FigureError(RuntimeError):
+    """A figure the helper process could not draw (its traceback in the message)."""
+
+
+def stop_all() -> None:
+    """Kill every helper of this process (interrupt and exit paths)."""
+    for worker in list(_LIVE):
+        worker.kill()
+
+
+class FigureWorker:
+    """A helper process that draws figures; use as a context manager.
+
+    Examples
+    --------
+    >>> with FigureWorker() as figures:                      # doctest: +SKIP
+    ...     ticket = figures.submit("draw_counts_figure", data, folder)
+    ...     paths = figures.result(ticket)
+    """
+
+    def __init__(self, timeout_s: float = 600.0):
+        from multiprocessing.connection import Connection
+
+        self.timeout_s = float(timeout_s)
+        to_child_r, to_child_w = os.pipe()
+        from_child_r, from_child_w = os.pipe()
+        env = dict(os.environ)
+        for key in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+            env[key] = "1"              # it draws; the command's threads have the cores
+        env["MPLBACKEND"] = "Agg"
+        try:
+            self._proc = subprocess.Popen(
+                [sys.executable, "-m", "acoustics.cli.figure_worker", str(to_child_r), str(from_child_w)],
+                pass_fds=(to_child_r, from_child_w), stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env, close_fds=True)
+        finally:
+            os.close(to_child_r)
+            os.close(from_child_w)
+        self._send = Connection(to_child_w, readable=False)
+        self._recv = Connection(from_child_r, writable=False)
+        self._next = 0
+        self._done: dict = {}
+        _LIVE.add(self)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        if kind is None:
+            self.close()
+        else:
+            self.kill()
+        return False
+
+    def submit(self, job: str, data, outdir) -> int:
+        """Queue a drawing; returns a ticket for :meth:`result`."""
+        if job not in JOBS:
+            raise ValueError(f"unknown figure job {job!r}; accepted: {', '.join(JOBS)}")
+        ticket = self._next
+        self._next += 1
+        try:
+            self._send.send((ticket, job, data, str(outdir)))
+        except OSError:
+            raise self._died() from None
+        return ticket
+
+    def result(self, ticket: int) -> list:
+        """The paths the job ``ticket`` wrote (waits for it); raises :class:`FigureError`."""
+        while ticket not in self._done:
+            try:
+                if not self._recv.poll(self.timeout_s):
+                    self.kill()
+                    raise FigureError(f"the figure process drew nothing for {self.timeout_s:g} s")
+                got, ok, value = self._recv.recv()
+            except (EOFError, OSError):
+                raise self._died() from None
+            self._done[got] = (ok, value)
+        ok, value = self._done.pop(ticket)
+        if not ok:
+            raise FigureError(value)
+        return value
+
+    def _died(self) -> FigureError:
+        code = self._proc.poll()
+        self.kill()
+        return FigureError(f"the figure process ended unexpectedly (exit status {code})")
+
+    def close(self):
+        """Let the helper finish and end (after every :meth:`result` was collected)."""
+        if self not in _LIVE:
+            return
+        _LIVE.discard(self)
+        for conn in (self._send, self._recv):
+            conn.close()
+        try:
+            self._proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            self._proc.kill()
+            self._proc.wait()
+
+    def kill(self):
+        """End the helper now (it may be writing: call before removing its folders)."""
+        _LIVE.discard(self)
+        if self._proc.poll() is None:
+            self._proc.kill()
+            try:
+                self._proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:   # pragma: no cover - the kernel owes us a reap
+                pass
+        for conn in (self._send, self._recv):
+            try:
+                conn.close()
+            except OSError:
+                pass
+
+
+# ------------------------------------------------------------------------------ the helper
+def _die_with_parent():
+    """Ask Linux to kill this process when the command that started it ends."""
+    try:
+        import ctypes
+        import signal
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(signal.SIGKILL))          # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):               # pragma: no cover - not Linux
+        pass
+    if os.getppid() == 1:                            # the command already ended
+        os._exit(0)
+
+
+def _warm_up():
+    """Load matplotlib's font and renderer once, while the command is still computing."""
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(1, 1))
+    ax.set_title("x")
+    fig.canvas.draw()
+    plt.close(fig)
+
+
+def _serve(read_fd: int, write_fd: int):
+    import signal
+    import traceback
+    import warnings
+    from multiprocessing.connection import Connection
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C is the command's to handle
+    _die_with_parent()
+    warnings.simplefilter("ignore")
+    recv = Connection(read_fd, writable=False)
+    send = Connection(write_fd, readable=False)
+    import matplotlib
+    matplotlib.use("Agg")
+    from processing import plots
+    _warm_up()
+    while True:
+        try:
+            ticket, job, data, outdir = recv.recv()
+        except (EOFError, OSError):
+            return
+        try:
+            if job not in JOBS:
+                raise ValueError(f"unknown figure job {job!r}")
+            out = getattr(plots, job)(data, outdir)
+            paths = [str(p) for p in (out if isinstance(out, list) else [out])]
+            send.send((ticket, True, paths))
+        except Exception:   # the command reports it (one line, traceback in its log)
+            send.send((ticket, False, f"{job}: {traceback.format_exc(limit=8)}"))
+
+
+if __name__ == "__main__":
+    _serve(int(sys.argv[1]), int(sys.argv[2]))

@@ -1,0 +1,122 @@
+"""What keeps a run lean: no needless imports, a figure helper that draws what this process
+would, memory that does not hold the samples twice. Speed itself is measured in
+benchmarks/speed.py ("end to end"), not here."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _python(code: str, cwd) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg")
+    out = subprocess.run([sys.executable, "-c", code], cwd=cwd, env=env, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_simulate_count_and_write_never_import_dask(tmp_path):
+    """Dask is installed (for experiments) but a run makes no Dask arrays: xarray must not
+    import dask, dask.array or distributed to find that out."""
+    got = _python(
+        "import json, sys, warnings; warnings.simplefilter('ignore')\n"
+        "import acoustics, processing\n"
+        "tree = processing.count(acoustics.simulate(acoustics.load_scene('two_targets'), pings=range(2)))\n"
+        "processing.write_tree(tree, 'run.nc')\n"
+        "t = processing.open_tree('run.nc'); processing.count(t)\n"
+        "print(json.dumps({m: m in sys.modules for m in ('dask', 'dask.array', 'distributed')}))",
+        tmp_path)
+    assert got == {"dask": False, "dask.array": False, "distributed": False}
+
+
+def test_xarray_still_recognises_dask_arrays_once_dask_is_imported(tmp_path):
+    """The lazy probe answers 'not Dask' only while Dask is not loaded; afterwards xarray's own
+    answer holds: a chunked variable stays lazy and computes the right values."""
+    pytest.importorskip("dask.array")
+    got = _python(
+        "import json, numpy as np, warnings; warnings.simplefilter('ignore')\n"
+        "import processing.dataset, xarray as xr\n"
+        "plain = xr.DataArray(np.arange(6.0), dims='x')\n"           # probed before Dask
+        "import dask.array as da\n"
+        "lazy = xr.DataArray(da.arange(6.0, chunks=2), dims='x')\n"
+        "print(json.dumps({'chunked': lazy.chunks is not None, 'sum': float((lazy * 2).sum()),"
+        " 'plain_chunks': plain.chunks is None}))",
+        tmp_path)
+    assert got == {"chunked": True, "sum": 30.0, "plain_chunks": True}
+
+
+def test_writing_restores_the_netcdf_chunk_cache(tmp_path):
+    import netCDF4
+
+    import acoustics
+    import processing
+    before = netCDF4.get_chunk_cache()
+    tree = acoustics.simulate(acoustics.load_scene("two_targets"), pings=range(1))
+    processing.write_tree(tree, tmp_path / "a.nc")
+    assert netCDF4.get_chunk_cache() == before
+    back = processing.open_tree(tmp_path / "a.nc")
+    g = "Sonar/Beam_group1"
+    np.testing.assert_array_equal(back[g]["backscatter_r"].values, tree[g]["backscatter_r"].values)
+
+
+def test_the_figure_helper_draws_what_this_process_draws(tmp_path):
+    """Same pixels from the helper process as from matplotlib here."""
+    from PIL import Image
+
+    import acoustics
+    import processing
+    from acoustics.cli.figure_worker import FigureWorker
+    from processing.plots import count_figure_data, draw_counts_figure, draw_detection_figure
+    tree = processing.count(acoustics.simulate(acoustics.load_scene("two_targets"), pings=range(2)))
+    data = count_figure_data(tree, pings=[1])
+    here, there = tmp_path / "here", tmp_path / "there"
+    draw_detection_figure(data["detections"][0], here)
+    draw_counts_figure(data["counts"], here)
+    with FigureWorker() as helper:
+        tickets = [helper.submit("draw_detection_figure", data["detections"][0], there),
+                   helper.submit("draw_counts_figure", data["counts"], there)]
+        paths = [p for t in tickets for p in helper.result(t)]
+    assert sorted(Path(p).name for p in paths) == ["counts.png", "detections_ping1.png"]
+    for name in ("counts.png", "detections_ping1.png"):
+        a, b = (np.asarray(Image.open(d / name)) for d in (here, there))
+        assert a.shape == b.shape and np.array_equal(a, b), name
+
+
+def test_a_figure_that_fails_is_one_error_and_the_helper_ends(tmp_path):
+    from acoustics.cli.figure_worker import FigureError, FigureWorker
+    helper = FigureWorker()
+    with pytest.raises(ValueError, match="unknown figure job"):
+        helper.submit("os.system", {}, tmp_path)
+    ticket = helper.submit("draw_counts_figure", {"ping_index": np.arange(3)}, tmp_path)
+    with pytest.raises(FigureError, match="draw_counts_figure"):
+        helper.result(ticket)
+    ok = helper.submit("draw_counts_figure", {"ping_index": np.arange(3), "count_before": np.ones(3),
+                                              "count_after": np.ones(3),
+                                              "density_per_m3": np.ones(3)}, tmp_path)
+    assert Path(helper.result(ok)[0]).is_file()        # a failed job does not end the helper
+    proc = helper._proc
+    helper.kill()
+    assert proc.poll() is not None
+
+
+def test_a_run_folder_killed_while_drawing_leaves_nothing_a_rerun_does_not_remove(tmp_path):
+    """The first ping's figures are drawn into a scratch folder next to the run folder before it
+    exists; if the run is killed, the next write of that run folder removes it."""
+    from processing.atomic import TMP_MARK, scratch, staged
+    stale = tmp_path / f".out.images{TMP_MARK}999999-0123abcd"     # a dead process' scratch
+    stale.mkdir()
+    (stale / "fan_beam.png").write_bytes(b"x")
+    with staged(tmp_path / "out") as tmp:
+        tmp.mkdir()
+    assert not stale.exists() and (tmp_path / "out").is_dir()
+    with scratch(tmp_path, "out.images") as folder:
+        assert folder.is_dir() and folder.name.startswith(".out.images" + TMP_MARK)
+    assert not folder.exists()
