@@ -598,8 +598,12 @@ def run_probe(probe: Probe) -> Result:
             return Result(probe, "silent", "accepted (exit 0)", err, seconds)
         if probe.expect == "refuse" and len(lines) > 3:
             return Result(probe, "unclear", f"{len(lines)} lines on stderr", err, seconds)
-        if temps:
+        # SIGKILL cannot be cleaned up after: its temporaries are the next run's to remove
+        killed = probe.interrupt is not None and probe.interrupt[0] == signal.SIGKILL
+        if temps and not killed:
             return Result(probe, "partial output", f"temporaries left: {temps[:3]}", err, seconds)
+        if killed:
+            new = [p for p in new if ".tmp-" not in p and ".old-" not in p]
         if probe.expect == "refuse" and new and not (probe.interrupt and rc == 0):
             return Result(probe, "partial output", f"left {new[:3]}", err, seconds)
         if probe.then:

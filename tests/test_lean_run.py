@@ -120,3 +120,43 @@ def test_a_run_folder_killed_while_drawing_leaves_nothing_a_rerun_does_not_remov
     with scratch(tmp_path, "out.images") as folder:
         assert folder.is_dir() and folder.name.startswith(".out.images" + TMP_MARK)
     assert not folder.exists()
+
+
+def test_the_figure_helper_dies_with_a_killed_run(tmp_path):
+    """SIGKILL on the run alone (no handler can run): the kernel ends its helper too, and the
+    next write of the run folder removes what they left."""
+    import signal
+    import time
+
+    psutil = pytest.importorskip("psutil")
+    env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg",
+               ABACUS_CACHE_DIR=str(tmp_path / "cache"))
+    proc = subprocess.Popen([sys.executable, "-m", "acoustics", "run", "default", "-o", "out",
+                             "--pings", "2000"], cwd=tmp_path, env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        helpers = []
+        while not helpers and time.monotonic() < deadline and proc.poll() is None:
+            helpers = [p for p in psutil.Process(proc.pid).children()
+                       if "figure_worker" in " ".join(p.cmdline())]
+            time.sleep(0.05)
+        assert helpers, "the run started no figure helper"
+        scratch = []
+        while not scratch and time.monotonic() < deadline and proc.poll() is None:
+            scratch = [p for p in tmp_path.iterdir() if p.name.startswith(".out.images.tmp-")]
+            time.sleep(0.05)
+        assert scratch, "the first ping's figures were not begun while the run went on"
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+        gone, alive = psutil.wait_procs(helpers, timeout=5)
+        assert not alive
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    out = subprocess.run([sys.executable, "-m", "acoustics", "run", "default", "-o", "out",
+                          "--pings", "1", "--no-plots"], cwd=tmp_path, env=env, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert not scratch[0].exists()
+    assert not [p.name for p in tmp_path.iterdir() if ".tmp-" in p.name]

@@ -6,8 +6,8 @@ renamed into place when they are all there. Figure folders appear after the numb
 each again staged and renamed, so a failure or Ctrl-C while drawing never costs the numbers and
 never leaves half a folder. The figures are drawn by a helper process
 (:mod:`acoustics.cli.figure_worker`) beside this one: it starts importing matplotlib at once,
-draws the first ping's images (into a hidden scratch folder) while the pings are processed, and
-shares the remaining figures with this process once the numbers are saved.
+draws the first ping's images (into a hidden scratch folder) while the pings are simulated and
+processed, and shares the remaining figures with this process once the numbers are saved.
 """
 from __future__ import annotations
 
@@ -61,10 +61,10 @@ def command(args) -> int:
     log.add("start", time.perf_counter() - _T0)
     with ExitStack() as stack:
         # the figure helper starts first: it imports matplotlib while this process computes
-        figures = None
+        helper = None
         if args.plots:
             from acoustics.cli.figure_worker import FigureWorker
-            figures = stack.enter_context(FigureWorker())
+            helper = stack.enter_context(FigureWorker())
         with log.stage("load"):
             scene = load(args.scene)
         if args.output:
@@ -76,19 +76,23 @@ def command(args) -> int:
         pings = ping_list(scene, args.pings)
         check_scene_resources(scene, args, pings=len(pings) if pings else None, images=args.images,
                               output=outdir / "run.nc", figures=args.plots)
+        figures = _RunFigures(stack, helper, outdir) if helper is not None else None
         print(f"scene '{scene.name}' ({args.scene}): {scene.pings.count} ping(s), "
               f"sha256 {scene.sha256()[:12]}")
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             with log.stage("simulate"):
+                if figures is not None:
+                    # a ping depends on no other: the first one's images are drawn while the
+                    # run simulates and processes the others (one ping simulated twice, ≈ 1 %)
+                    first = pings[0] if pings is not None else scene.pings.first
+                    figures.images(simulate(scene, pings=[first]))
                 tree = simulate(scene, pings=pings, progress=Progress("simulate"))
-            early = None
-            if figures is not None:
-                # the first ping's images depend on nothing later: drawn while the rest is processed
-                early = _draw_image_figures_early(stack, figures, tree, outdir)
             with log.stage("process"):
                 tree = processing.count(tree, images=args.images)
                 result = processing.count_summary(tree)
+                if figures is not None:
+                    figures.counts(tree)      # drawn while the numbers are written
         notes = run_notes(tree, caught)
         result["summary"]["warnings"] = notes
         with log.stage("write"), staged(outdir) as tmp:
@@ -103,7 +107,7 @@ def command(args) -> int:
         made = "run.nc (dataset), detections.csv, counts.json, beams.json, scene.resolved.yaml"
         if figures is not None:
             with log.stage("figures"):
-                _figures(scene, tree, outdir, figures, early)
+                figures.place(scene)
             made += ", images/, counts/, beams/"
     for note in notes:
         print(f"warning: {note}", file=sys.stderr)
@@ -130,42 +134,50 @@ def run_notes(tree, caught) -> list[str]:
     return notes
 
 
-def _draw_image_figures_early(stack, figures, tree, outdir: Path):
-    """Send the first ping's image figures to the helper, to be drawn into a scratch folder
-    next to the run folder (which does not exist until the numbers are saved); returns
-    (folder, ticket)."""
-    from processing.atomic import scratch
-    from processing.plots import image_figure_data
-    from processing.products import figure_images
-    # named so that any later write of the run folder removes it if this process is killed
-    folder = stack.enter_context(scratch(outdir.parent, f"{outdir.name}.images"))
-    data = image_figure_data(figure_images(tree, [0]), ping=0)
-    return folder, figures.submit("draw_image_figures", data, folder)
+class _RunFigures:
+    """The run's figures, drawn by the helper process into scratch folders next to the run
+    folder (which does not exist until the numbers are saved) while this process computes and
+    writes; :meth:`place` moves each folder into the run folder, staged, once they are saved.
+    This process never imports matplotlib (≈ 1 s of its own)."""
 
+    def __init__(self, stack, helper, outdir: Path):
+        self._stack, self._helper, self._outdir = stack, helper, outdir
+        self._folders: dict = {}
 
-def _figures(scene, tree, outdir: Path, figures, early):
-    """The run's figures, after its numbers are saved (each folder staged): the helper draws the
-    images (begun while processing) and the first detection figures; this process draws the
-    rest — the two share the machine's cores."""
-    import os
+    def _submit(self, name: str, job: str, data):
+        from processing.atomic import scratch
+        if name not in self._folders:
+            # named so that any later write of the run folder removes it if this process is killed
+            folder = self._stack.enter_context(scratch(self._outdir.parent, f"{self._outdir.name}.{name}"))
+            self._folders[name] = (folder, [])
+        folder, tickets = self._folders[name]
+        tickets.append(self._helper.submit(job, data, folder))
 
-    from acoustics.cli.beams import beam_figures
-    from processing.atomic import staged
-    from processing.plots import count_figure_data, draw_counts_figure, draw_detection_figure
-    n = tree["Processing/Counts"].sizes["ping_time"]
-    data = count_figure_data(tree, pings=range(min(n, 3)))
-    mine = data["detections"][-1:] if len(data["detections"]) > 1 else []
-    with staged(outdir / "counts") as tmp_counts:
-        tickets = [figures.submit("draw_detection_figure", d, tmp_counts)
-                   for d in data["detections"][:len(data["detections"]) - len(mine)]]
-        for d in mine:
-            draw_detection_figure(d, tmp_counts)
-        draw_counts_figure(data["counts"], tmp_counts)
-        with staged(outdir / "beams") as tmp:
+    def images(self, tree):
+        """images/: the image figures of the dataset's first ping."""
+        from processing.plots import image_figure_data
+        from processing.products import figure_images
+        self._submit("images", "draw_image_figures", image_figure_data(figure_images(tree, [0])))
+
+    def counts(self, tree):
+        """counts/: detections of the first three pings, and counts per ping."""
+        from processing.plots import count_figure_data
+        n = tree["Processing/Counts"].sizes["ping_time"]
+        data = count_figure_data(tree, pings=range(min(n, 3)))
+        for d in data["detections"]:
+            self._submit("counts", "draw_detection_figure", d)
+        self._submit("counts", "draw_counts_figure", data["counts"])
+
+    def place(self, scene):
+        """Wait for every drawing; each figure folder appears whole in the run folder."""
+        import os
+
+        from acoustics.cli.beams import beam_figures
+        from processing.atomic import staged
+        with staged(self._outdir / "beams") as tmp:    # cached per geometry: copied
             beam_figures(scene, tmp)
-        folder, ticket = early
-        figures.result(ticket)
-        with staged(outdir / "images") as tmp:
-            os.replace(folder, tmp)
-        for t in tickets:
-            figures.result(t)
+        for name, (folder, tickets) in self._folders.items():
+            for ticket in tickets:
+                self._helper.result(ticket)
+            with staged(self._outdir / name) as tmp:
+                os.replace(folder, tmp)
