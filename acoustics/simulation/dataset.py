@@ -195,11 +195,12 @@ def beam_group(scene, setup, pings, ping_time, samples, clipped, chan_names, *, 
     direction = np.broadcast_to(rot @ np.array([0.0, 0.0, 1.0]), (el.n_elements, 3))
     per_ping = lambda v: xr.DataArray(np.full((1, n_p), float(v)), dims=("channel", "ping_time"))
     per_beam = lambda v: xr.DataArray(np.asarray(v, float)[None, :], dims=("channel", "beam"))
-    pair = {k: xr.DataArray(v.values[None].transpose(0, 1, 3, 2),
-                            dims=("channel", "ping_time", "range_sample", "beam"), attrs=v.attrs)
-            for k, v in split_complex("backscatter", samples, ("ping_time", "beam", "range_sample"),
-                                      {"units": "ADC counts",
-                                       "long_name": "complex baseband samples per receive element"}).items()}
+    # the samples are already float32 (ping_time, range_sample, beam) planes: wrapped, not copied,
+    # and written as they are (a transposed view would be copied whole by the writer)
+    attrs = {"units": "ADC counts", "long_name": "complex baseband samples per receive element"}
+    pair = {f"backscatter_{k}": xr.DataArray(v[None], dims=("channel", "ping_time", "range_sample", "beam"),
+                                             attrs=dict(attrs))
+            for k, v in zip("ri", samples)}
     start = pulse.center_frequency_hz - np.sign(pulse.chirp_rate_hz_s or 1) * pulse.bandwidth_hz / 2
     stop = pulse.center_frequency_hz + np.sign(pulse.chirp_rate_hz_s or 1) * pulse.bandwidth_hz / 2
     eg = xr.Dataset(

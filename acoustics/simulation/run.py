@@ -71,12 +71,15 @@ def simulate(scene, *, pings=None, seed: int | None = None, progress=None):
     with log.stage("setup"):
         setup = make_setup(scene, log)
     n_ch, n = setup.sonar.n_channels, scene.sampling.samples
-    samples = np.zeros((len(pings), n_ch, n), np.complex64)
+    # I and Q as the dataset stores them: float32 (ping, range_sample, beam), so the dataset wraps
+    # them and the writer writes them without a copy
+    samples = (np.zeros((len(pings), n, n_ch), np.float32), np.zeros((len(pings), n, n_ch), np.float32))
     clipped = np.zeros((len(pings), n_ch), int) if scene.sampling.adc.quantize else None
     truth: list[TargetSet] = []
     for i, p in enumerate(pings):
         x, c, t = simulate_ping(scene, setup, p, seed=seed, log=log)
-        samples[i] = x
+        samples[0][i] = x.real.T
+        samples[1][i] = x.imag.T
         if clipped is not None:
             clipped[i] = c
         truth.append(t)
