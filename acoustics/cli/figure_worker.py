@@ -7,7 +7,8 @@ fonts while the command imports and simulates, then draws the jobs it is sent â€
 data of :mod:`processing.plots` (plain arrays, pickled over a pipe) â€” in order, into the
 folders it is told (the command's staged temporaries), and answers each with the files written.
 
-The helper never outlives the command: it ignores SIGINT (the command handles Ctrl-C and ends
+It runs at a lower priority (nice 10): where the command's threads keep every core busy,
+drawing waits for the gaps. The helper never outlives the command: it ignores SIGINT (the command handles Ctrl-C and ends
 it), is killed with the command (``PR_SET_PDEATHSIG`` on Linux) and by :func:`stop_all`, which
 the CLI's exit path calls before it removes the temporaries the helper may be writing into.
 A job that fails comes back as :class:`FigureError` with the helper's traceback.
@@ -167,25 +168,44 @@ def _warm_up():
 
 
 def _serve(read_fd: int, write_fd: int):
+    import queue
     import signal
+    import threading
     import traceback
     import warnings
     from multiprocessing.connection import Connection
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C is the command's to handle
     _die_with_parent()
+    # the command's own threads come first: where they keep every core busy, drawing waits
+    os.nice(10)
     warnings.simplefilter("ignore")
     recv = Connection(read_fd, writable=False)
     send = Connection(write_fd, readable=False)
+    jobs = queue.SimpleQueue()
+
+    def read():
+        # jobs are taken off the pipe as they come, so the command never waits on a full pipe
+        # while a figure is being drawn
+        while True:
+            try:
+                jobs.put(recv.recv())
+            except (EOFError, OSError):
+                jobs.put(None)
+                return
+
+    threading.Thread(target=read, daemon=True).start()
     import matplotlib
     matplotlib.use("Agg")
     from processing import plots
     _warm_up()
     while True:
-        try:
-            ticket, job, data, outdir = recv.recv()
-        except (EOFError, OSError):
-            return
+        item = jobs.get()
+        if item is None:
+            # the command is done with it: every answer is sent, nothing is left to flush, and
+            # tearing matplotlib's interpreter down would only keep the command waiting
+            os._exit(0)
+        ticket, job, data, outdir = item
         try:
             if job not in JOBS:
                 raise ValueError(f"unknown figure job {job!r}")
