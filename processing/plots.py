@@ -211,24 +211,7 @@ def draw_image_figures(data: dict, outdir: Path) -> list[Path]:
     outdir.mkdir(parents=True, exist_ok=True)
     img, groups, ping = data["image"], data["groups"], data["ping"]
     r, th = data["range_m"], data["beam_angle_rad"]
-    paths = []
-    fig, axes = plt.subplots(1, len(groups), figsize=(5.5 * len(groups), 7), squeeze=False)
-    fixed_layout(fig, left=0.7, right=0.9, wspace=0.5)
-    for ax, g, im in zip(axes[0], groups, img):
-        plot_fan(ax, np.abs(im), r, th, title=f"fan-beam image, subarray {g}, ping {ping}")
-    paths.append(save(fig, outdir / "fan_beam.png"))
-    plt.close(fig)
-    fig, axes = plt.subplots(1, len(groups), figsize=(5.5 * len(groups), 6), squeeze=False)
-    fixed_layout(fig, left=0.7, right=0.2, wspace=0.35)
-    for ax, g, im in zip(axes[0], groups, img):
-        mag = np.abs(im)
-        m = _raster(ax, _db(mag, max(mag.max(), 1e-300)), r, th, vmin=-40, vmax=0)
-        ax.set_xlabel("azimuth θ (deg)")
-        ax.set_ylabel("range r (m)")
-        ax.set_title(f"I(r, θ), subarray {g}")
-        fig.colorbar(m, ax=ax).set_label("|I| (dB re max)")
-    paths.append(save(fig, outdir / "image.png"))
-    plt.close(fig)
+    paths = [_fan_figure(img, groups, ping, r, th, outdir), _image_figure(img, groups, r, th, outdir)]
     fig, ax = plt.subplots(figsize=(9, 4))
     fixed_layout(fig)
     plot_range_profiles(ax, img[0], r, th)
@@ -243,6 +226,33 @@ def draw_image_figures(data: dict, outdir: Path) -> list[Path]:
         paths.append(save(fig, outdir / "phase.png"))
         plt.close(fig)
     return paths
+
+
+def _fan_figure(img, groups, ping, r, th, outdir: Path) -> Path:
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, len(groups), figsize=(5.5 * len(groups), 7), squeeze=False)
+    fixed_layout(fig, left=0.7, right=0.9, wspace=0.5)
+    for ax, g, im in zip(axes[0], groups, img):
+        plot_fan(ax, np.abs(im), r, th, title=f"fan-beam image, subarray {g}, ping {ping}")
+    path = save(fig, outdir / "fan_beam.png")
+    plt.close(fig)
+    return path
+
+
+def _image_figure(img, groups, r, th, outdir: Path) -> Path:
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, len(groups), figsize=(5.5 * len(groups), 6), squeeze=False)
+    fixed_layout(fig, left=0.7, right=0.2, wspace=0.35)
+    for ax, g, im in zip(axes[0], groups, img):
+        mag = np.abs(im)
+        m = _raster(ax, _db(mag, max(mag.max(), 1e-300)), r, th, vmin=-40, vmax=0)
+        ax.set_xlabel("azimuth θ (deg)")
+        ax.set_ylabel("range r (m)")
+        ax.set_title(f"I(r, θ), subarray {g}")
+        fig.colorbar(m, ax=ax).set_label("|I| (dB re max)")
+    path = save(fig, outdir / "image.png")
+    plt.close(fig)
+    return path
 
 
 def count_figures(tree, outdir: Path, *, pings=(0,), max_pings: int = 5,
