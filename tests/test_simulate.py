@@ -321,3 +321,34 @@ def test_ground_truth_and_counting_volume():
     assert z.min() >= 15 and z.max() <= 25
     rho = gt["target_backscatter_amplitude"].values
     assert rho.min() >= 0.25 and rho.max() <= 1.25
+
+
+@pytest.mark.parametrize("up, q0", [(1, 7), (2, 10), (3, 9), (4, 0)])
+def test_every_up_th_sample_of_an_inverse_fft_by_folding_its_spectrum(up, q0):
+    """Keeping every up-th sample of an inverse FFT is the inverse FFT of the spectrum folded
+    up times (aliasing is sampling): the same numbers for half (a third, ...) the transform."""
+    from acoustics.synthesis.synthesize import _even_fast_len, _every_up_th
+    rng = np.random.default_rng(up)
+    size = _even_fast_len(1000, up)
+    assert size % up == 0 and size >= 1000
+    spec = rng.standard_normal((3, size)) + 1j * rng.standard_normal((3, size))
+    n = (size - q0) // up
+    full = np.fft.ifft(spec, axis=-1)[:, q0:q0 + up * n:up]
+    np.testing.assert_allclose(_every_up_th(spec.copy(), up, q0, n), full, rtol=0, atol=1e-15)
+
+
+def test_delta_trains_padded_to_the_fft_length_are_the_same_trains():
+    scene = load("default.yaml")
+    setup = make_setup(scene)
+    from acoustics.synthesis.arrivals import spread_arrivals
+    from acoustics.synthesis.synthesize import fractional_delay_table
+    p = np.array([[0.3, 0.0, 14.0], [-0.5, 0.1, 20.0], [0.0, 0.0, 60.0]])   # the last beyond n_out
+    q = np.array([1.0 + 0.5j, 0.7, 2.0j])
+    kw = dict(table=fractional_delay_table(8, 0.4), t0_s=0.0, rate_hz=90910.0, q0=30, n_out=2000)
+    short = spread_arrivals(setup.model, p, q, **kw)
+    long = spread_arrivals(setup.model, p, q, length=2600, **kw)
+    assert long.shape == (short.shape[0], 2600)
+    np.testing.assert_array_equal(long[:, :2000], short)
+    assert not long[:, 2000:].any()
+    with pytest.raises(ValueError, match="length"):
+        spread_arrivals(setup.model, p, q, length=1999, **kw)

@@ -216,17 +216,18 @@ def _add_taps(row, ar, ai, tau, t0, fs, q0, table, dtable, lo, hi):
 
 @nb.njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
 def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, inv_lam, alpha,
-            small_abs, spreading, baffle, table, dtable, t0, fs, q0, n_out):
+            small_abs, spreading, baffle, table, dtable, t0, fs, q0, n_out, n_alloc):
     """Accumulate every arrival onto its channel's delta train through the kernel table.
 
     ``table[i, j]`` is the kernel at tap j for fractional offset i / (rows − 1) and ``dtable``
     its forward difference along i; taps land on samples floor(μ) − L/2 + 1 + j with
-    μ = (τ − t0) fs + q0. One thread per channel, scatterers in the given order: the sums do
-    not depend on the number of threads.
+    μ = (τ − t0) fs + q0, those of arrivals outside [0, n_out) dropped; the trains are
+    ``n_alloc`` ≥ n_out long, zero beyond n_out (an FFT length: no padded copy). One thread per
+    channel, scatterers in the given order: the sums do not depend on the number of threads.
     """
     n_s, n_r = px.shape[0], c.shape[0]
     half = table.shape[1] // 2
-    out = np.zeros((n_r, n_out, 2))  # re, im adjacent: one cache line per tap pair
+    out = np.zeros((n_r, n_alloc, 2))  # re, im adjacent: one cache line per tap pair
     lo = float(half)
     hi = float(n_out - half)
     for n in nb.prange(n_r):
@@ -462,15 +463,20 @@ def arrivals(model: EchoModel, positions_m, strength, *, receive_positions_m=Non
 
 
 def spread_arrivals(model: EchoModel, positions_m, strength, *, table, t0_s, rate_hz, q0, n_out,
-                    receive_positions_m=None):
-    """The channels' fractional-delay delta trains, shape (N_rx, n_out), complex128.
+                    receive_positions_m=None, length=None):
+    """The channels' fractional-delay delta trains, shape (N_rx, length), complex128.
 
-    Scatterers are visited in order of range (a stable sort), so the delta trains are written
-    nearly sequentially; the order is fixed by the scene, never by the thread count.
+    Arrivals land on samples [0, n_out) (the rest are dropped); ``length`` (≥ n_out, default
+    n_out) pads the trains with zeros, e.g. to the FFT length that convolves them. Scatterers are
+    visited in order of range (a stable sort), so the delta trains are written nearly
+    sequentially; the order is fixed by the scene, never by the thread count.
     """
     args = _kernel_inputs(model, positions_m, strength, by_range=True,
                           receive_positions_m=receive_positions_m)
     table = np.ascontiguousarray(table)
+    length = int(n_out) if length is None else int(length)
+    if length < n_out:
+        raise ValueError(f"length {length} < n_out {n_out}")
     out = _spread(*args, table, np.ascontiguousarray(np.diff(table, axis=0)), float(t0_s),
-                  float(rate_hz), float(q0), int(n_out))
+                  float(rate_hz), float(q0), int(n_out), length)
     return out.view(np.complex128)[..., 0]

@@ -216,8 +216,9 @@ def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
     fine = fs * up
     replica = pulse.replica(fine)
     m = replica.size
-    # room for an echo that starts up to a pulse length plus half a kernel before sample 0
-    q0 = m + taps
+    # room for an echo that starts up to a pulse length plus half a kernel before sample 0; a
+    # whole number of output samples, so the output keeps every up-th fine sample from q0
+    q0 = up * -(-(m + taps) // up)
     n_out = q0 + up * n + taps
     doppler = groups is not None
     if groups is None:
@@ -225,8 +226,9 @@ def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
     widest = max(abs(g[0]) for g in groups)
     band = min(pulse.bandwidth_hz + 4.0 / pulse.duration_s + 2.0 * widest, 0.98 * fine)
     table = fractional_delay_table(int(taps), (fine - band) / fine)
-    nfft = sfft.next_fast_len(n_out + m - 1)  # linear, not circular, convolution
+    nfft = _even_fast_len(n_out + m - 1, up)  # linear, not circular, convolution
     spec = None
+    rep_spec = {}
     acc = None
     if doppler:
         c = model.medium.sound_speed_m_s
@@ -255,17 +257,40 @@ def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
                     acc = np.zeros((delta.shape[0], nfft), complex)
                 acc[:, g_lo:g_lo + span + m - 1] += y
                 continue
+        # the trains come at the FFT's length (no padded copy), transformed in place
         delta = spread_arrivals(model, pk, qk, table=table, t0_s=t0, rate_hz=fine, q0=q0,
-                                n_out=n_out, receive_positions_m=rk)
-        part = sfft.fft(delta, nfft, axis=1, workers=-1)
-        part *= sfft.fft(rep, nfft)
+                                n_out=n_out, receive_positions_m=rk, length=nfft)
+        part = sfft.fft(delta, axis=1, workers=-1, overwrite_x=True)
+        if shift_hz not in rep_spec:
+            rep_spec[shift_hz] = sfft.fft(rep, nfft)
+        part *= rep_spec[shift_hz]
         if spec is None:
             spec = part
         else:
             spec += part
-    full = sfft.ifft(spec, axis=1, workers=-1) if spec is not None else None
+    out = _every_up_th(spec, up, q0, n) if spec is not None else None
     if acc is not None:
-        full = acc if full is None else full + acc
-    if full is None:
+        late = acc[:, q0:q0 + up * n:up]
+        out = late if out is None else out + late
+    if out is None:
         return np.zeros((model.receiver.n_elements, n), complex)
-    return full[:, q0:q0 + up * n:up]
+    return out
+
+
+def _even_fast_len(n: int, up: int) -> int:
+    """The smallest FFT-friendly length ≥ n that ``up`` divides."""
+    size = sfft.next_fast_len(n)
+    while size % up:
+        size = sfft.next_fast_len(size + 1)
+    return size
+
+
+def _every_up_th(spec, up: int, q0: int, n: int):
+    """Samples q0, q0 + up, ... (n of them) of the inverse FFT of ``spec`` (..., N), computed
+    by one inverse FFT of length N/up: keeping every up-th sample folds the spectrum,
+    x[up k] = IFFT_{N/up}(Σ_r X[f + r N/up])[k] / up — the same numbers, half the transform."""
+    size = spec.shape[-1] // up
+    folded = spec.reshape(spec.shape[:-1] + (up, size)).sum(axis=-2)
+    folded /= up
+    y = sfft.ifft(folded, axis=-1, workers=-1, overwrite_x=True)
+    return y[..., q0 // up:q0 // up + n]
