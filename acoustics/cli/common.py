@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 __all__ = ["UsageError", "load", "ping_list", "Progress", "default_scene_path", "check_output",
-           "add_output_options", "check_scene_resources"]
+           "add_output_options", "check_scene_resources", "prefetch"]
 
 
 class UsageError(Exception):
@@ -24,6 +24,24 @@ def load(path):
     from acoustics.scene.builtin import resolve_scene_argument
     from acoustics.scene.load import load_scene
     return load_scene(resolve_scene_argument(path))
+
+
+def prefetch(*modules: str):
+    """Import ``modules`` on a background thread, for a later stage: the compiled kernels and
+    FFTs of the stage before release the interpreter, so the import runs in their shadow
+    instead of on the critical path. A module that fails to import here is left for the stage
+    itself to import, and to report."""
+    import threading
+
+    def load_all():
+        import importlib
+        for name in modules:
+            try:
+                importlib.import_module(name)
+            except Exception:   # the stage that needs it will say why
+                pass
+
+    threading.Thread(target=load_all, name="abacus-prefetch", daemon=True).start()
 
 
 class Progress:

@@ -19,7 +19,7 @@ import warnings
 from pathlib import Path
 
 from acoustics.cli.common import (Progress, add_output_options, check_output, check_scene_resources,
-                                  load, ping_list)
+                                  load, ping_list, prefetch)
 
 _T0 = __import__("time").perf_counter()   # the command's own clock starts at its import
 
@@ -82,6 +82,8 @@ def command(args) -> int:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             with log.stage("simulate"):
+                # scoring's assignment solver: 0.2 s of imports the processing would wait for
+                prefetch("scipy.optimize")
                 if figures is not None:
                     # a ping depends on no other: the first one's images are drawn while the
                     # run simulates and processes the others (one ping simulated twice, ≈ 1 %)
