@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["array_key", "per_geometry", "cache_dir", "CACHE_VERSION"]
+__all__ = ["array_key", "per_geometry", "cache_dir", "clear_memory", "CACHE_VERSION"]
 
 #: bump when a cached computation changes its result
 CACHE_VERSION = 1
@@ -30,6 +30,12 @@ def array_key(arr) -> bytes:
     """Bytes identifying an :class:`~acoustics.sonar.arrays.ElementArray`'s geometry."""
     return b"".join(np.ascontiguousarray(a).tobytes() for a in
                     (arr.center_m, arr.width_m, arr.height_m, arr.rotation_rad, arr.weight))
+
+
+def clear_memory() -> None:
+    """Forget the results held in memory (the disk layer stays): the next request reads the disk
+    or computes, as a new process would."""
+    _CACHE.clear()
 
 
 def cache_dir() -> Path | None:
