@@ -7,8 +7,9 @@ fonts while the command imports and simulates, then draws the jobs it is sent â€
 data of :mod:`processing.plots` (plain arrays, pickled over a pipe) â€” in order, into the
 folders it is told (the command's staged temporaries), and answers each with the files written.
 
-It runs at a lower priority (nice 10): where the command's threads keep every core busy,
-drawing waits for the gaps. The helper never outlives the command: it ignores SIGINT (the command handles Ctrl-C and ends
+It runs at the command's priority: on two cores, drawing beside the physics (and slowing it)
+ends sooner than drawing only in its gaps and leaving a serial tail (measured: a lower priority,
+or a second helper, made the run no faster). The helper never outlives the command: it ignores SIGINT (the command handles Ctrl-C and ends
 it), is killed with the command (``PR_SET_PDEATHSIG`` on Linux) and by :func:`stop_all`, which
 the CLI's exit path calls before it removes the temporaries the helper may be writing into.
 A job that fails comes back as :class:`FigureError` with the helper's traceback.
@@ -177,8 +178,6 @@ def _serve(read_fd: int, write_fd: int):
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)    # Ctrl-C is the command's to handle
     _die_with_parent()
-    # the command's own threads come first: where they keep every core busy, drawing waits
-    os.nice(10)
     warnings.simplefilter("ignore")
     recv = Connection(read_fd, writable=False)
     send = Connection(write_fd, readable=False)
