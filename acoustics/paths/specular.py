@@ -118,82 +118,6 @@ def vertex_normals(vertices, faces):
     return out / np.where(norm > 0, norm, 1.0)[:, None]
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _tangential(V, N, S, P, out):
-    """Tangential part of the bisector b = ê_S + ê_P at every vertex."""
-    for v in range(V.shape[0]):
-        bx = by = bz = 0.0
-        for q in range(2):
-            Q = S if q == 0 else P
-            dx, dy, dz = V[v, 0] - Q[0], V[v, 1] - Q[1], V[v, 2] - Q[2]
-            r = np.sqrt(dx * dx + dy * dy + dz * dz)
-            if r > 0.0:
-                bx += dx / r
-                by += dy / r
-                bz += dz / r
-        bn = bx * N[v, 0] + by * N[v, 1] + bz * N[v, 2]
-        out[v, 0] = bx - bn * N[v, 0]
-        out[v, 1] = by - bn * N[v, 1]
-        out[v, 2] = bz - bn * N[v, 2]
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _candidates(V, F, N, S, P, tol, cap, out_pair, out_face, out_st):
-    """Facets on which the linearly interpolated tangential bisector vanishes, for every pair;
-    returns the number found (rows past ``cap`` are counted, not written)."""
-    tang = np.empty((V.shape[0], 3))
-    k = 0
-    for j in range(S.shape[0]):
-        _tangential(V, N, S[j], P[j], tang)
-        for f in range(F.shape[0]):
-            a, b, c = F[f, 0], F[f, 1], F[f, 2]
-            e1x, e1y, e1z = V[b, 0] - V[a, 0], V[b, 1] - V[a, 1], V[b, 2] - V[a, 2]
-            e2x, e2y, e2z = V[c, 0] - V[a, 0], V[c, 1] - V[a, 1], V[c, 2] - V[a, 2]
-            l1 = np.sqrt(e1x * e1x + e1y * e1y + e1z * e1z)
-            if l1 == 0.0:
-                continue
-            u1x, u1y, u1z = e1x / l1, e1y / l1, e1z / l1
-            d = e2x * u1x + e2y * u1y + e2z * u1z
-            wx, wy, wz = e2x - d * u1x, e2y - d * u1y, e2z - d * u1z
-            l2 = np.sqrt(wx * wx + wy * wy + wz * wz)
-            if l2 == 0.0:
-                continue
-            u2x, u2y, u2z = wx / l2, wy / l2, wz / l2
-            # the three vertex residuals in the facet's basis
-            pa0 = tang[a, 0] * u1x + tang[a, 1] * u1y + tang[a, 2] * u1z
-            pb0 = tang[b, 0] * u1x + tang[b, 1] * u1y + tang[b, 2] * u1z
-            pc0 = tang[c, 0] * u1x + tang[c, 1] * u1y + tang[c, 2] * u1z
-            lo = min(pa0, pb0, pc0)
-            hi = max(pa0, pb0, pc0)
-            span = hi - lo
-            if lo > tol * span or hi < -tol * span:
-                continue
-            pa1 = tang[a, 0] * u2x + tang[a, 1] * u2y + tang[a, 2] * u2z
-            pb1 = tang[b, 0] * u2x + tang[b, 1] * u2y + tang[b, 2] * u2z
-            pc1 = tang[c, 0] * u2x + tang[c, 1] * u2y + tang[c, 2] * u2z
-            lo1 = min(pa1, pb1, pc1)
-            hi1 = max(pa1, pb1, pc1)
-            span1 = hi1 - lo1
-            if lo1 > tol * span1 or hi1 < -tol * span1:
-                continue
-            m00, m01 = pb0 - pa0, pc0 - pa0
-            m10, m11 = pb1 - pa1, pc1 - pa1
-            det = m00 * m11 - m01 * m10
-            if det == 0.0:
-                continue
-            s = (-pa0 * m11 + pa1 * m01) / det
-            t = (-pa1 * m00 + pa0 * m10) / det
-            if s < -tol or t < -tol or s + t > 1.0 + tol:
-                continue
-            if k < cap:
-                out_pair[k] = j
-                out_face[k] = f
-                out_st[k, 0] = s
-                out_st[k, 1] = t
-            k += 1
-    return k
-
-
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _residual(V, N, S, P, v):
     """Tangential part of the bisector ê_S + ê_P at vertex v (three floats, no allocation)."""
@@ -211,9 +135,10 @@ def _residual(V, N, S, P, v):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _facet_test(V, N, S, P, a, b, c, tol):
-    """The linear zero test of :func:`_candidates` on one facet, its vertex residuals computed
-    here: (found, s, t)."""
+def _facet_zero(V, a, b, c, ra, rb, rc, tol):
+    """Where on facet (a, b, c) the linear interpolant of the vertex residuals ``ra``, ``rb``,
+    ``rc`` (3-tuples) vanishes, ``tol`` beyond its edges: (found, s, t) in its barycentric
+    coordinates."""
     e1x, e1y, e1z = V[b, 0] - V[a, 0], V[b, 1] - V[a, 1], V[b, 2] - V[a, 2]
     e2x, e2y, e2z = V[c, 0] - V[a, 0], V[c, 1] - V[a, 1], V[c, 2] - V[a, 2]
     l1 = np.sqrt(e1x * e1x + e1y * e1y + e1z * e1z)
@@ -226,18 +151,16 @@ def _facet_test(V, N, S, P, a, b, c, tol):
     if l2 == 0.0:
         return False, 0.0, 0.0
     u2x, u2y, u2z = wx / l2, wy / l2, wz / l2
-    ax, ay, az = _residual(V, N, S, P, a)
-    bx, by, bz = _residual(V, N, S, P, b)
-    cx, cy, cz = _residual(V, N, S, P, c)
-    pa0 = ax * u1x + ay * u1y + az * u1z
-    pb0 = bx * u1x + by * u1y + bz * u1z
-    pc0 = cx * u1x + cy * u1y + cz * u1z
+    # the three vertex residuals in the facet's basis: both components must change sign
+    pa0 = ra[0] * u1x + ra[1] * u1y + ra[2] * u1z
+    pb0 = rb[0] * u1x + rb[1] * u1y + rb[2] * u1z
+    pc0 = rc[0] * u1x + rc[1] * u1y + rc[2] * u1z
     lo, hi = min(pa0, pb0, pc0), max(pa0, pb0, pc0)
     if lo > tol * (hi - lo) or hi < -tol * (hi - lo):
         return False, 0.0, 0.0
-    pa1 = ax * u2x + ay * u2y + az * u2z
-    pb1 = bx * u2x + by * u2y + bz * u2z
-    pc1 = cx * u2x + cy * u2y + cz * u2z
+    pa1 = ra[0] * u2x + ra[1] * u2y + ra[2] * u2z
+    pb1 = rb[0] * u2x + rb[1] * u2y + rb[2] * u2z
+    pc1 = rc[0] * u2x + rc[1] * u2y + rc[2] * u2z
     lo, hi = min(pa1, pb1, pc1), max(pa1, pb1, pc1)
     if lo > tol * (hi - lo) or hi < -tol * (hi - lo):
         return False, 0.0, 0.0
@@ -251,6 +174,31 @@ def _facet_test(V, N, S, P, a, b, c, tol):
     if s < -tol or t < -tol or s + t > 1.0 + tol:
         return False, s, t
     return True, s, t
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _candidates(V, F, N, S, P, tol, cap, out_pair, out_face, out_st):
+    """Facets on which the linearly interpolated tangential bisector vanishes, for every pair,
+    every facet tested (the reference of :func:`_candidates_blocked`); returns the number found
+    (rows past ``cap`` are counted, not written)."""
+    tang = np.empty((V.shape[0], 3))
+    k = 0
+    for j in range(S.shape[0]):
+        for v in range(V.shape[0]):      # each vertex's residual once per pair
+            tang[v, 0], tang[v, 1], tang[v, 2] = _residual(V, N, S[j], P[j], v)
+        for f in range(F.shape[0]):
+            a, b, c = F[f, 0], F[f, 1], F[f, 2]
+            ok, s, t = _facet_zero(V, a, b, c, (tang[a, 0], tang[a, 1], tang[a, 2]),
+                                   (tang[b, 0], tang[b, 1], tang[b, 2]),
+                                   (tang[c, 0], tang[c, 1], tang[c, 2]), tol)
+            if ok:
+                if k < cap:
+                    out_pair[k] = j
+                    out_face[k] = f
+                    out_st[k, 0] = s
+                    out_st[k, 1] = t
+                k += 1
+    return k
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -287,7 +235,10 @@ def _candidates_blocked(V, F, N, S, P, tol, order, starts, centre, radius, axis,
                         continue
             for i in range(starts[blk], starts[blk + 1]):
                 f = order[i]
-                ok, s, t = _facet_test(V, N, S[j], P[j], F[f, 0], F[f, 1], F[f, 2], tol)
+                a, b, c = F[f, 0], F[f, 1], F[f, 2]
+                ok, s, t = _facet_zero(V, a, b, c, _residual(V, N, S[j], P[j], a),
+                                       _residual(V, N, S[j], P[j], b),
+                                       _residual(V, N, S[j], P[j], c), tol)
                 if ok:
                     if k < cap:
                         out_pair[k] = j
