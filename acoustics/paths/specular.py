@@ -176,6 +176,18 @@ def _facet_zero(V, a, b, c, ra, rb, rc, tol):
     return True, s, t
 
 
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _keep(k, cap, pair, face, s, t, out_pair, out_face, out_st):
+    """Write candidate k (if there is room) and return the count: rows past ``cap`` are counted,
+    so the caller can grow its buffers and search again."""
+    if k < cap:
+        out_pair[k] = pair
+        out_face[k] = face
+        out_st[k, 0] = s
+        out_st[k, 1] = t
+    return k + 1
+
+
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _candidates(V, F, N, S, P, tol, cap, out_pair, out_face, out_st):
     """Facets on which the linearly interpolated tangential bisector vanishes, for every pair,
@@ -192,12 +204,7 @@ def _candidates(V, F, N, S, P, tol, cap, out_pair, out_face, out_st):
                                    (tang[b, 0], tang[b, 1], tang[b, 2]),
                                    (tang[c, 0], tang[c, 1], tang[c, 2]), tol)
             if ok:
-                if k < cap:
-                    out_pair[k] = j
-                    out_face[k] = f
-                    out_st[k, 0] = s
-                    out_st[k, 1] = t
-                k += 1
+                k = _keep(k, cap, j, f, s, t, out_pair, out_face, out_st)
     return k
 
 
@@ -240,12 +247,7 @@ def _candidates_blocked(V, F, N, S, P, tol, order, starts, centre, radius, axis,
                                        _residual(V, N, S[j], P[j], b),
                                        _residual(V, N, S[j], P[j], c), tol)
                 if ok:
-                    if k < cap:
-                        out_pair[k] = j
-                        out_face[k] = f
-                        out_st[k, 0] = s
-                        out_st[k, 1] = t
-                    k += 1
+                    k = _keep(k, cap, j, f, s, t, out_pair, out_face, out_st)
     return k
 
 
