@@ -491,8 +491,8 @@ def end_to_end():
             "cache (beam table, beamwidths, calibration, beam figures; `~/.cache/abacus`) filled by "
             "an earlier run and the compiled kernels on disk; *cold*: an empty geometry cache. "
             "Best of 3 interleaved runs; the package byte-compiled first, as an install is. Peak RSS: "
-            "the command's own process (`wait4`), and its process tree (the figure helper included; "
-            "sampled every 5 ms).\n\n"
+            "the command's own process (its VmHWM), and its process tree (the figure helper "
+            "included; the largest sum of their RSS, sampled every 5 ms).\n\n"
             + table(["what", "wall (s)", "vs API (simulate → image → detect → count)",
                      "peak RSS, process (MB)", "peak RSS, process tree (MB)", "pings/s"], rows)
             + "\n\n**Where a run's time goes** (the run's own `time:` line, best runs above; *exit*: "

@@ -160,3 +160,27 @@ def test_the_figure_helper_dies_with_a_killed_run(tmp_path):
     assert out.returncode == 0, out.stderr
     assert not scratch[0].exists()
     assert not [p.name for p in tmp_path.iterdir() if ".tmp-" in p.name]
+
+
+def test_a_cold_run_has_its_beam_figures_drawn_by_the_helper_and_cached(tmp_path):
+    """With an empty geometry cache the helper draws beams/ (the same pixels as drawing here)
+    and the run caches them, so the next run copies them."""
+    from PIL import Image
+
+    env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg",
+               ABACUS_CACHE_DIR=str(tmp_path / "cache"))
+    run = subprocess.run([sys.executable, "-m", "acoustics", "run", "two_targets", "-o", "out",
+                          "--pings", "1"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                         timeout=600)
+    assert run.returncode == 0, run.stderr
+    assert [p.name for p in (tmp_path / "cache").glob("beam_figures-*")]
+    here = subprocess.run([sys.executable, "-c", "import acoustics; from acoustics.cli.beams import "
+                           "beam_figures; beam_figures(acoustics.load_scene('two_targets'), 'here')"],
+                          cwd=tmp_path, env=dict(env, ABACUS_CACHE_DIR="off"), capture_output=True,
+                          text=True, timeout=600)
+    assert here.returncode == 0, here.stderr
+    names = sorted(p.name for p in (tmp_path / "here").iterdir())
+    assert names == sorted(p.name for p in (tmp_path / "out" / "beams").iterdir()) and len(names) == 3
+    for name in names:
+        a, b = (np.asarray(Image.open(d / name)) for d in (tmp_path / "here", tmp_path / "out" / "beams"))
+        assert a.shape == b.shape and np.array_equal(a, b), name

@@ -39,24 +39,51 @@ def beam_figures(scene, outdir: Path) -> list[Path]:
     """
     import tempfile
 
+    from acoustics.sonar.plots import plot_beam_figures
+    pngs = cached_beam_figures(scene)
+    if pngs is None:
+        with tempfile.TemporaryDirectory() as tmp:
+            plot_beam_figures(beam_cuts_of(scene), tmp)
+            pngs = store_beam_figures(scene, tmp)
+    return write_beam_figures(pngs, outdir)
+
+
+def _figure_key(scene):
+    medium, f0, geometry = _geometry(scene)
+    return (tuple(sorted((geometry or {}).items())), float(medium.sound_speed_m_s), float(f0))
+
+
+def beam_cuts_of(scene) -> dict:
+    """What the beam figures draw: the pattern cuts of every array of the beam table."""
+    from acoustics.sonar.beam_table import beam_arrays, beam_cuts
+    medium, f0, geometry = _geometry(scene)
+    return beam_cuts(beam_arrays(geometry), medium=medium, frequency_hz=f0)
+
+
+def cached_beam_figures(scene):
+    """The beam figures' PNG bytes (one uint8 array each) from the geometry cache, or None."""
+    from acoustics.sonar.cache import cached
+    return cached("beam_figures", _figure_key(scene))
+
+
+def store_beam_figures(scene, folder) -> tuple:
+    """Keep the beam figures drawn into ``folder`` in the geometry cache; returns their bytes."""
     import numpy as np
 
-    from acoustics.sonar.beam_table import beam_arrays, beam_cuts
     from acoustics.sonar.cache import per_geometry
-    from acoustics.sonar.plots import BEAM_FIGURES, plot_beam_figures
-    from processing.atomic import write_bytes_atomic
-    medium, f0, geometry = _geometry(scene)
+    from acoustics.sonar.plots import BEAM_FIGURES
+    pngs = tuple(np.frombuffer((Path(folder) / name).read_bytes(), np.uint8) for name in BEAM_FIGURES)
+    return per_geometry("beam_figures", _figure_key(scene), lambda: pngs)
 
-    def draw():
-        with tempfile.TemporaryDirectory() as tmp:
-            paths = plot_beam_figures(beam_cuts(beam_arrays(geometry), medium=medium,
-                                                frequency_hz=f0), tmp)
-            return tuple(np.frombuffer(p.read_bytes(), np.uint8) for p in paths)
-    key = (tuple(sorted((geometry or {}).items())), float(medium.sound_speed_m_s), float(f0))
+
+def write_beam_figures(pngs, outdir) -> list[Path]:
+    """Write the beam figures' PNG bytes into ``outdir`` (each file atomically)."""
+    from acoustics.sonar.plots import BEAM_FIGURES
+    from processing.atomic import write_bytes_atomic
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
-    return [write_bytes_atomic(outdir / name, png.tobytes())
-            for name, png in zip(BEAM_FIGURES, per_geometry("beam_figures", key, draw))]
+    return [write_bytes_atomic(outdir / name, np_bytes.tobytes())
+            for name, np_bytes in zip(BEAM_FIGURES, pngs)]
 
 
 def beams(scene, outdir: Path | None, as_json: bool) -> dict:

@@ -4,7 +4,8 @@ matplotlib draws on one core and holds the GIL; abacus' physics and processing l
 the machine idle (start-up, single-threaded stretches, writing the dataset). A command that
 draws figures starts :class:`FigureWorker` first: the helper imports matplotlib and warms its
 fonts while the command imports and simulates, then draws the jobs it is sent — figures of the
-data of :mod:`processing.plots` (plain arrays, pickled over a pipe) — in order, into the
+data of :mod:`processing.plots` and :mod:`acoustics.sonar.plots` (plain arrays, pickled over
+a pipe) — in order, into the
 folders it is told (the command's staged temporaries), and answers each with the files written.
 
 It runs at the command's priority: on two cores, drawing beside the physics (and slowing it)
@@ -22,8 +23,9 @@ import sys
 
 __all__ = ["FigureWorker", "FigureError", "stop_all", "JOBS"]
 
-#: what a helper can be asked to draw: name -> processing.plots function(data, outdir)
-JOBS = ("draw_image_figures", "draw_detection_figure", "draw_counts_figure")
+#: what a helper can be asked to draw: function(data, outdir) -> the module that defines it
+JOBS = {"draw_image_figures": "processing.plots", "draw_detection_figure": "processing.plots",
+        "draw_counts_figure": "processing.plots", "plot_beam_figures": "acoustics.sonar.plots"}
 
 #: workers of this process still running (for :func:`stop_all`)
 _LIVE: set = set()
@@ -194,9 +196,11 @@ def _serve(read_fd: int, write_fd: int):
                 return
 
     threading.Thread(target=read, daemon=True).start()
+    import importlib
+
     import matplotlib
     matplotlib.use("Agg")
-    from processing import plots
+    import processing.plots  # noqa: F401  (the figures of every run: loaded before they are asked for)
     _warm_up()
     while True:
         item = jobs.get()
@@ -208,7 +212,7 @@ def _serve(read_fd: int, write_fd: int):
         try:
             if job not in JOBS:
                 raise ValueError(f"unknown figure job {job!r}")
-            out = getattr(plots, job)(data, outdir)
+            out = getattr(importlib.import_module(JOBS[job]), job)(data, outdir)
             paths = [str(p) for p in (out if isinstance(out, list) else [out])]
             send.send((ticket, True, paths))
         except Exception:   # the command reports it (one line, traceback in its log)

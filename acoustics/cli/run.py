@@ -77,6 +77,8 @@ def command(args) -> int:
         check_scene_resources(scene, args, pings=len(pings) if pings else None, images=args.images,
                               output=outdir / "run.nc", figures=args.plots)
         figures = _RunFigures(stack, helper, outdir) if helper is not None else None
+        if figures is not None:
+            figures.beams(scene)
         print(f"scene '{scene.name}' ({args.scene}): {scene.pings.count} ping(s), "
               f"sha256 {scene.sha256()[:12]}")
         with warnings.catch_warnings(record=True) as caught:
@@ -170,16 +172,26 @@ class _RunFigures:
             self._submit("counts", "draw_detection_figure", d)
         self._submit("counts", "draw_counts_figure", data["counts"])
 
+    def beams(self, scene):
+        """beams/: copied from the geometry cache, or drawn by the helper (and then cached)."""
+        from acoustics.cli.beams import beam_cuts_of, cached_beam_figures
+        self._beam_pngs = cached_beam_figures(scene)
+        if self._beam_pngs is None:
+            self._submit("beams", "plot_beam_figures", beam_cuts_of(scene))
+
     def place(self, scene):
         """Wait for every drawing; each figure folder appears whole in the run folder."""
         import os
 
-        from acoustics.cli.beams import beam_figures
+        from acoustics.cli.beams import store_beam_figures, write_beam_figures
         from processing.atomic import staged
-        with staged(self._outdir / "beams") as tmp:    # cached per geometry: copied
-            beam_figures(scene, tmp)
+        if getattr(self, "_beam_pngs", None) is not None:
+            with staged(self._outdir / "beams") as tmp:
+                write_beam_figures(self._beam_pngs, tmp)
         for name, (folder, tickets) in self._folders.items():
             for ticket in tickets:
                 self._helper.result(ticket)
+            if name == "beams":
+                store_beam_figures(scene, folder)     # the next run copies them
             with staged(self._outdir / name) as tmp:
                 os.replace(folder, tmp)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["array_key", "per_geometry", "cache_dir", "clear_memory", "CACHE_VERSION"]
+__all__ = ["array_key", "per_geometry", "cached", "cache_dir", "clear_memory", "CACHE_VERSION"]
 
 #: bump when a cached computation changes its result
 CACHE_VERSION = 1
@@ -80,6 +80,19 @@ def _store(path: Path, value) -> None:
             write_bytes_atomic(path.with_suffix(".npz"), buf.getvalue())
     except OSError:  # a read-only or full disk only costs the next run the computation
         pass
+
+
+def cached(name: str, key):
+    """The value :func:`per_geometry` holds for (name, key), from memory or disk, or None when
+    it would have to be computed (nothing is computed here)."""
+    k = (name, key)
+    if k in _CACHE:
+        return _CACHE[k]
+    path = _file(name, key)
+    value = _load(path) if path is not None else None
+    if value is not None:
+        _CACHE[k] = value
+    return value
 
 
 def per_geometry(name: str, key, compute, *, disk: bool = True):
