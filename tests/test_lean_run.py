@@ -132,7 +132,7 @@ def test_the_figure_helper_dies_with_a_killed_run(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg",
                ABACUS_CACHE_DIR=str(tmp_path / "cache"))
     proc = subprocess.Popen([sys.executable, "-m", "acoustics", "run", "default", "-o", "out",
-                             "--pings", "2000"], cwd=tmp_path, env=env,
+                             "--pings", "400"], cwd=tmp_path, env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         deadline = time.monotonic() + 120
