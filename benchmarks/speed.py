@@ -293,13 +293,16 @@ def experiment():
 
 
 def _child(cmd, *, cwd, env=None, tree=False):
-    """Run a command; (wall s, peak RSS of the command's own process in MB, peak RSS of its
+    """Run a command; (wall s, peak RSS of the command's own process in MB, peak memory of its
     process tree in MB, stdout).
 
-    Peaks are read from /proc every 5 ms: the process' own high-water mark (VmHWM, exact up to
-    the last 5 ms) and, with ``tree``, the largest sum of the current RSS of it and its children
-    (the figure helper). Not ``wait4``'s ru_maxrss: a child started by fork/vfork + exec carries
-    the high-water mark of the process that started it, here this benchmark's.
+    Peaks are read from /proc: the process' own high-water mark (VmHWM, exact up to the last
+    5 ms) and, with ``tree``, the largest sum of the proportional set sizes (PSS) of it and its
+    descendants (the figure helper and the copies it forks), sampled every 10 ms. PSS, not RSS:
+    a forked copy shares most of its pages with the helper, and summing RSS would count them
+    twice. Reading PSS walks the page tables (≈ 1 ms a process), so timed runs leave ``tree``
+    off. Not ``wait4``'s ru_maxrss: a child started by fork/vfork + exec carries the high-water
+    mark of the process that started it, here this benchmark's.
     """
     import subprocess
     import threading
@@ -310,6 +313,16 @@ def _child(cmd, *, cwd, env=None, tree=False):
             with open(f"/proc/{pid}/status") as f:
                 for line in f:
                     if line.startswith("VmHWM"):
+                        return int(line.split()[1]) / 1024
+        except OSError:
+            pass
+        return 0.0
+
+    def pss(pid):
+        try:
+            with open(f"/proc/{pid}/smaps_rollup") as f:
+                for line in f:
+                    if line.startswith("Pss:"):
                         return int(line.split()[1]) / 1024
         except OSError:
             pass
@@ -330,17 +343,12 @@ def _child(cmd, *, cwd, env=None, tree=False):
         while not done.is_set():
             own[0] = max(own[0], hwm(proc.pid))
             if tree:
-                rss = 0
                 try:
-                    for p in [root] + root.children(recursive=True):
-                        try:
-                            rss += p.memory_info().rss
-                        except psutil.Error:
-                            pass
+                    pids = [proc.pid] + [p.pid for p in root.children(recursive=True)]
                 except psutil.Error:
-                    pass
-                total[0] = max(total[0], rss / 2**20)
-            time.sleep(0.005)
+                    pids = [proc.pid]
+                total[0] = max(total[0], sum(pss(pid) for pid in pids))
+            time.sleep(0.01 if tree else 0.005)
 
     sampler = threading.Thread(target=sample, daemon=True)
     sampler.start()
@@ -406,29 +414,34 @@ def end_to_end():
                            env=env, check=True)
         api = json.loads(r.stdout.strip().splitlines()[-1])
 
-        def run(tag, *extra, cold=False, pings=None):
+        def run(tag, *extra, cold=False, pings=None, memory=False):
             e = dict(env, ABACUS_CACHE_DIR=str(work / f"cold-{tag}")) if cold else env
             out = work / f"out-{tag}"
             shutil.rmtree(out, ignore_errors=True)
             more = ["--pings", str(pings)] if pings else []
             res = _child(exe + ["run", "default", "-o", str(out), *more, *extra], cwd=work, env=e,
-                         tree=True)
+                         tree=memory)
             return res, out
 
         run("warmup")                                     # fills the geometry cache
         best = {}
         for rep in range(3):                              # interleaved: the machine drifts
             for tag, extra in (("plots", ()), ("noplots", ("--no-plots",))):
-                (wall, rss, tree_rss, stdout), out = run(tag, *extra)
+                (wall, rss, _, stdout), out = run(tag, *extra)
                 if wall < best.get(tag, (1e9,))[0]:
-                    best[tag] = (wall, rss, tree_rss, (out / "run.nc").stat().st_size / 1e6,
+                    best[tag] = (wall, rss, (out / "run.nc").stat().st_size / 1e6,
                                  _stage_times(stdout))
-        (cold_wall, cold_rss, cold_tree, _), _ = run("cold", cold=True)
-        floor = {tag: run(f"one-{tag}", *extra, pings=1)[0] for tag, extra in
+        (cold_wall, cold_rss, _, _), _ = run("cold", cold=True)
+        (_, _, cold_tree, _), _ = run("cold-memory", cold=True, memory=True)
+        # memory in runs of their own: the process tree's PSS is too dear to read in timed runs
+        peak = {tag: run(f"mem-{tag}", *extra, memory=True)[0] for tag, extra in
+                (("plots", ()), ("noplots", ("--no-plots",)))}
+        floor = {tag: run(f"one-{tag}", *extra, pings=1, memory=True)[0] for tag, extra in
                  (("plots", ()), ("noplots", ("--no-plots",)))}
         samples_mb = 100 * 16 * 4096 * 8 / 2**20          # complex64, what the run simulates
-        w_p, rss_p, tree_p, size_p, st_p = best["plots"]
-        w_n, rss_n, tree_n, _, st_n = best["noplots"]
+        w_p, rss_p, size_p, st_p = best["plots"]
+        w_n, rss_n, _, st_n = best["noplots"]
+        tree_p, tree_n = peak["plots"][2], peak["noplots"][2]
         rows = [["API: simulate → image → detect → count (warm)", f"{api['literal']:.2f}", "1.00", "", "", ""],
                 ["API: simulate → count (warm; count images and detects)", f"{api['lean']:.2f}",
                  f"{api['lean'] / api['literal']:.2f}", "", "", ""],
@@ -448,7 +461,7 @@ def end_to_end():
         mem_rows = []
         for tag, label in (("noplots", "`--no-plots`"), ("plots", "plots on")):
             one = floor[tag]
-            full = best[tag]
+            full = peak[tag]
             mem_rows.append([label, f"{one[2]:.0f}", f"{full[2]:.0f}", f"{full[2] - one[2]:.0f}",
                              f"{(full[2] - one[2]) / (samples_mb * 99 / 100):.2f}"])
 
@@ -461,7 +474,7 @@ def end_to_end():
         for label, cmd, path in cmds:
             wall, rss, _, _ = _child(cmd, cwd=work, env=env)
             per_cmd.append([label, f"{wall:.2f}", f"{path.stat().st_size / 1e6:.1f}", f"{rss:.0f}"])
-        per_cmd.append(["`abacus run default` (run.nc)", f"{w_p:.2f}", f"{size_p:.1f}", f"{tree_p:.0f}"])
+        per_cmd.append(["`abacus run default` (run.nc; PSS of its process tree)", f"{w_p:.2f}", f"{size_p:.1f}", f"{tree_p:.0f}"])
 
         # experiments: the default layout vs in process vs two local workers
         exp_rows, exp = [], {}
@@ -491,10 +504,12 @@ def end_to_end():
             "cache (beam table, beamwidths, calibration, beam figures; `~/.cache/abacus`) filled by "
             "an earlier run and the compiled kernels on disk; *cold*: an empty geometry cache. "
             "Best of 3 interleaved runs; the package byte-compiled first, as an install is. Peak RSS: "
-            "the command's own process (its VmHWM), and its process tree (the figure helper "
-            "included; the largest sum of their RSS, sampled every 5 ms).\n\n"
+            "the command's own process (its VmHWM), in the timed runs; and its process tree (the "
+            "figure helper and the copies it forks included), in a run of its own: the largest sum "
+            "of their proportional set sizes (PSS: a page shared by two processes counts half in "
+            "each), sampled every 10 ms.\n\n"
             + table(["what", "wall (s)", "vs API (simulate → image → detect → count)",
-                     "peak RSS, process (MB)", "peak RSS, process tree (MB)", "pings/s"], rows)
+                     "peak RSS, process (MB)", "peak PSS, process tree (MB)", "pings/s"], rows)
             + "\n\n**Where a run's time goes** (the run's own `time:` line, best runs above; *exit*: "
               "the wall time outside the named stages — interpreter start before the command's "
               "module, and the end of the process). *start* is the interpreter importing what "
@@ -508,7 +523,7 @@ def end_to_end():
               "already has every fixed cost — the interpreter and its modules, the compiled "
               "kernels, thread pools, the figure helper — so the peak of the 100-ping run minus "
               "the one-ping run's is the memory its data take, here against the 99 more pings' "
-              f"samples ({samples_mb * 99 / 100:.0f} MB as complex64). Peak RSS of the process "
+              f"samples ({samples_mb * 99 / 100:.0f} MB as complex64). Peak PSS of the process "
               "tree (MB):\n\n"
             + table(["run", "1 ping", "100 pings", "difference", "difference / samples"], mem_rows)
             + "\n\n**Per command** (the default scene, 100 pings; peak RSS of the process):\n\n"

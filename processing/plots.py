@@ -5,6 +5,7 @@ Like the thesis' Figures 4.8 (image), 4.13 (fan-beam image), 4.1/4.4 (range prof
 """
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,18 @@ __all__ = ["fan_beam", "plot_fan", "plot_range_profiles", "plot_phase_map", "sav
 #: zlib level of the PNGs: 3 encodes the run's figures in half the time of the default 6, for
 #: files ≈ 10 % larger (measured on the default scene's 11 figures: 0.60 → 0.35 s, 1.9 → 2.1 MB)
 PNG_COMPRESS_LEVEL = 3
+
+
+def _titles_at_the_top(draw):
+    """Draw with every axes title at its place above the axes (``axes.titley`` 1): matplotlib
+    otherwise measures each axes' tick labels at every draw to move a title above any it would
+    cover, ≈ 12 % of these figures' cost, and none of them puts labels there (same pixels)."""
+    @functools.wraps(draw)
+    def drawn(*args, **kwargs):
+        import matplotlib
+        with matplotlib.rc_context({"axes.titley": 1.0}):
+            return draw(*args, **kwargs)
+    return drawn
 
 
 def fan_beam(magnitude, range_m, beam_angle_rad, *, pixel_m: float | None = None,
@@ -201,6 +214,7 @@ def image_figures(images, outdir: Path, *, ping: int = 0) -> list[Path]:
     return draw_image_figures(image_figure_data(images, ping=ping), outdir)
 
 
+@_titles_at_the_top
 def draw_image_figures(data: dict, outdir: Path) -> list[Path]:
     """The figures of :func:`image_figures` from :func:`image_figure_data`."""
     import matplotlib
@@ -322,6 +336,7 @@ def count_figure_data(tree, *, pings=(0,), max_pings: int = 5, counts: bool = Tr
             "counts": {k: cnt[k] for k in keys if k in cnt} if counts else None}
 
 
+@_titles_at_the_top
 def draw_detection_figure(d: dict, outdir: Path) -> Path:
     """detections_ping<k>.png from one entry of :func:`count_figure_data`."""
     import matplotlib
@@ -359,6 +374,7 @@ def draw_detection_figure(d: dict, outdir: Path) -> Path:
     return path
 
 
+@_titles_at_the_top
 def draw_counts_figure(c: dict, outdir: Path) -> Path:
     """counts.png (counts and errors vs ping) from the ``counts`` of :func:`count_figure_data`."""
     import matplotlib

@@ -90,6 +90,85 @@ def test_the_figure_helper_draws_what_this_process_draws(tmp_path):
         assert a.shape == b.shape and np.array_equal(a, b), name
 
 
+def test_the_run_figures_put_titles_where_matplotlib_would(tmp_path):
+    """Titles fixed at the top of their axes (no measuring of tick labels per draw) give the
+    same pixels as matplotlib's own placement for every figure a run draws."""
+    from PIL import Image
+
+    import acoustics
+    import processing
+    from processing import plots
+    from processing.products import figure_images
+    tree = processing.count(acoustics.simulate(acoustics.load_scene("default"), pings=range(1)))
+    images = plots.image_figure_data(figure_images(tree, [0]))
+    counts = plots.count_figure_data(tree, pings=[0])
+    for draw in (plots.draw_image_figures, plots.draw_detection_figure, plots.draw_counts_figure):
+        data = {plots.draw_image_figures: images, plots.draw_detection_figure: counts["detections"][0],
+                plots.draw_counts_figure: counts["counts"]}[draw]
+        fast, auto = draw(data, tmp_path / "fast"), draw.__wrapped__(data, tmp_path / "auto")
+        for a, b in zip(*(p if isinstance(p, list) else [p] for p in (fast, auto))):
+            assert np.array_equal(np.asarray(Image.open(a)), np.asarray(Image.open(b))), Path(a).name
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="forked copies draw on spare cores")
+def test_queued_figures_are_drawn_by_forked_copies_that_die_with_the_helper(tmp_path):
+    """Figures sent together are drawn side by side by copies of the helper (same pixels as
+    here); killing the helper ends its copies too."""
+    import threading
+    import time
+
+    from PIL import Image
+
+    import acoustics
+    import processing
+    from acoustics.cli.figure_worker import FigureWorker
+    from processing.plots import count_figure_data, draw_detection_figure
+    psutil = pytest.importorskip("psutil")
+    tree = processing.count(acoustics.simulate(acoustics.load_scene("default"), pings=range(3)))
+    data = count_figure_data(tree, pings=range(3))["detections"]
+    seen, stop = set(), threading.Event()
+
+    def watch(pid):
+        while not stop.is_set():
+            try:
+                seen.update(c.pid for c in psutil.Process(pid).children())
+            except psutil.Error:
+                pass
+            time.sleep(0.01)
+
+    with FigureWorker() as helper:
+        watcher = threading.Thread(target=watch, args=(helper._proc.pid,), daemon=True)
+        watcher.start()
+        tickets = [helper.submit("draw_detection_figure", d, tmp_path / "there") for d in data]
+        paths = [p for t in tickets for p in helper.result(t)]
+        stop.set()
+        watcher.join()
+    assert seen, "no forked copy drew while figures were queued"
+    assert sorted(Path(p).name for p in paths) == [f"detections_ping{d['ping_index']}.png" for d in data]
+    for d, path in zip(data, paths):
+        here = draw_detection_figure(d, tmp_path / "here")
+        assert np.array_equal(np.asarray(Image.open(here)), np.asarray(Image.open(path)))
+
+    helper = FigureWorker()
+    for d in data * 3:
+        helper.submit("draw_detection_figure", d, tmp_path / "killed")
+    deadline, copies = time.monotonic() + 120, []
+    while not copies and time.monotonic() < deadline:
+        copies = psutil.Process(helper._proc.pid).children()
+        time.sleep(0.01)
+    assert copies, "no forked copy began"
+    helper.kill()
+    gone, alive = psutil.wait_procs(copies, timeout=5)
+    assert not [p for p in alive if _running(p, psutil)]     # dead, if perhaps not yet reaped
+
+
+def _running(proc, psutil) -> bool:
+    try:
+        return proc.status() != psutil.STATUS_ZOMBIE
+    except psutil.Error:
+        return False
+
+
 def test_a_figure_that_fails_is_one_error_and_the_helper_ends(tmp_path):
     from acoustics.cli.figure_worker import FigureError, FigureWorker
     helper = FigureWorker()

@@ -10,9 +10,15 @@ folders it is told (the command's staged temporaries), and answers each with the
 
 It runs at the command's priority: on two cores, drawing beside the physics (and slowing it)
 ends sooner than drawing only in its gaps and leaving a serial tail (measured: a lower priority,
-or a second helper, made the run no faster). The helper never outlives the command: it ignores SIGINT (the command handles Ctrl-C and ends
-it), is killed with the command (``PR_SET_PDEATHSIG`` on Linux) and by :func:`stop_all`, which
-the CLI's exit path calls before it removes the temporaries the helper may be writing into.
+or a second helper, made the run no faster). When figures queue up (the counts' figures, sent
+together once the numbers exist and drawn while the command only writes and waits) the helper
+forks copies of itself, matplotlib already imported and warm, to draw them side by side, one
+per spare core. The helper never outlives the command: it ignores SIGINT (the command handles
+Ctrl-C and ends it), is killed with the command (``PR_SET_PDEATHSIG`` on Linux, as are its
+copies with it) and by :func:`stop_all`, which the CLI's exit path calls before it removes the
+temporaries the helper may be writing into; it leads its own process group, so that one signal
+ends it and its copies together. Answers are single writes of at most ``PIPE_BUF`` bytes
+(file names, not paths), which the helper and its copies can share a pipe with.
 A job that fails comes back as :class:`FigureError` with the helper's traceback.
 """
 from __future__ import annotations
@@ -65,7 +71,8 @@ class FigureWorker:
             self._proc = subprocess.Popen(
                 [sys.executable, "-m", "acoustics.cli.figure_worker", str(to_child_r), str(from_child_w)],
                 pass_fds=(to_child_r, from_child_w), stdin=subprocess.DEVNULL,
-                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env, close_fds=True)
+                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env, close_fds=True,
+                start_new_session=True)     # its own process group: it and its forked copies
         finally:
             os.close(to_child_r)
             os.close(from_child_w)
@@ -73,6 +80,7 @@ class FigureWorker:
         self._recv = Connection(from_child_r, writable=False)
         self._next = 0
         self._done: dict = {}
+        self._folder: dict = {}
         _LIVE.add(self)
 
     def __enter__(self):
@@ -95,6 +103,7 @@ class FigureWorker:
             self._send.send((ticket, job, data, str(outdir)))
         except OSError:
             raise self._died() from None
+        self._folder[ticket] = str(outdir)
         return ticket
 
     def result(self, ticket: int) -> list:
@@ -109,9 +118,10 @@ class FigureWorker:
                 raise self._died() from None
             self._done[got] = (ok, value)
         ok, value = self._done.pop(ticket)
+        folder = self._folder.pop(ticket)
         if not ok:
             raise FigureError(value)
-        return value
+        return [os.path.join(folder, name) for name in value]
 
     def _died(self) -> FigureError:
         code = self._proc.poll()
@@ -133,9 +143,13 @@ class FigureWorker:
 
     def kill(self):
         """End the helper now (it may be writing: call before removing its folders)."""
+        import signal
         _LIVE.discard(self)
         if self._proc.poll() is None:
-            self._proc.kill()
+            try:    # the helper and any copy it forked, at once
+                os.killpg(self._proc.pid, signal.SIGKILL)
+            except OSError:
+                self._proc.kill()
             try:
                 self._proc.wait(timeout=5)
             except subprocess.TimeoutExpired:   # pragma: no cover - the kernel owes us a reap
@@ -174,7 +188,6 @@ def _serve(read_fd: int, write_fd: int):
     import queue
     import signal
     import threading
-    import traceback
     import warnings
     from multiprocessing.connection import Connection
 
@@ -202,22 +215,83 @@ def _serve(read_fd: int, write_fd: int):
     matplotlib.use("Agg")
     import processing.plots  # noqa: F401  (the figures of every run: loaded before they are asked for)
     _warm_up()
+    copies: dict = {}        # pid of a forked copy -> the ticket it draws
+    most = _spare_drawers()
     while True:
         item = jobs.get()
+        _reap(copies, wait=item is None)
         if item is None:
             # the command is done with it: every answer is sent, nothing is left to flush, and
             # tearing matplotlib's interpreter down would only keep the command waiting
             os._exit(0)
         ticket, job, data, outdir = item
-        try:
-            if job not in JOBS:
-                raise ValueError(f"unknown figure job {job!r}")
-            out = getattr(importlib.import_module(JOBS[job]), job)(data, outdir)
-            paths = [str(p) for p in (out if isinstance(out, list) else [out])]
-            send.send((ticket, True, paths))
-        except Exception:   # the command reports it (one line, traceback in its log)
-            send.send((ticket, False, f"{job}: {traceback.format_exc(limit=8)}"))
+        if not jobs.empty() and len(copies) < most:
+            # more figures wait than this process draws at once (the counts after the numbers):
+            # a forked copy, matplotlib already warm, draws this one beside it
+            try:
+                pid = os.fork()
+            except OSError:
+                pid = None
+            if pid == 0:
+                try:
+                    _die_with_parent()
+                    _answer(send, _draw(importlib, ticket, job, data, outdir))
+                finally:
+                    os._exit(0)
+            if pid is not None:
+                copies[pid] = ticket
+                continue
+        _answer(send, _draw(importlib, ticket, job, data, outdir))
 
+
+def _spare_drawers() -> int:
+    """Forked copies that may draw at once: the cores beyond this helper's (at most 3)."""
+    try:
+        n = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not on Linux
+        n = os.cpu_count() or 1
+    return max(0, min(3, n - 1))
+
+
+def _reap(copies: dict, *, wait: bool):
+    """Collect the forked copies that ended (all of them with ``wait``)."""
+    for pid in list(copies):
+        try:
+            done, _ = os.waitpid(pid, 0 if wait else os.WNOHANG)
+        except ChildProcessError:
+            done = pid
+        if done:
+            del copies[pid]
+
+
+def _draw(importlib, ticket, job, data, outdir):
+    """(ticket, True, names of the files written in ``outdir``) or (ticket, False, the error)."""
+    import traceback
+    from pathlib import Path
+    try:
+        if job not in JOBS:
+            raise ValueError(f"unknown figure job {job!r}")
+        out = getattr(importlib.import_module(JOBS[job]), job)(data, outdir)
+        return ticket, True, [Path(p).name for p in (out if isinstance(out, list) else [out])]
+    except Exception:   # the command reports it (one line, traceback in its log)
+        return ticket, False, f"{job}: {traceback.format_exc(limit=8)}"
+
+
+#: the most bytes a pipe takes in one write without interleaving it with another's (POSIX ≥ 512)
+_PIPE_BUF = getattr(__import__("select"), "PIPE_BUF", 512)
+
+
+def _answer(send, message):
+    """Send one answer in one write of at most PIPE_BUF bytes: the helper and its forked copies
+    share the pipe, and such writes are never interleaved (an error's text is shortened to fit,
+    keeping its end, which says why)."""
+    import pickle
+    ticket, ok, value = message
+    payload = pickle.dumps(message)
+    while len(payload) + 4 > _PIPE_BUF and not ok and len(value) > 1:
+        value = "…" + value[-(len(value) // 2):]
+        payload = pickle.dumps((ticket, ok, value))
+    send.send_bytes(payload)
 
 if __name__ == "__main__":
     _serve(int(sys.argv[1]), int(sys.argv[2]))
