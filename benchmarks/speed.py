@@ -308,21 +308,12 @@ def _child(cmd, *, cwd, env=None, tree=False):
     import threading
     import time
 
-    def hwm(pid):
+    def proc_mb(pid, file, key):
+        """A size from /proc/<pid>/<file> (the line ``key: N kB``) in MB; 0 once it is gone."""
         try:
-            with open(f"/proc/{pid}/status") as f:
+            with open(f"/proc/{pid}/{file}") as f:
                 for line in f:
-                    if line.startswith("VmHWM"):
-                        return int(line.split()[1]) / 1024
-        except OSError:
-            pass
-        return 0.0
-
-    def pss(pid):
-        try:
-            with open(f"/proc/{pid}/smaps_rollup") as f:
-                for line in f:
-                    if line.startswith("Pss:"):
+                    if line.startswith(key):
                         return int(line.split()[1]) / 1024
         except OSError:
             pass
@@ -341,13 +332,13 @@ def _child(cmd, *, cwd, env=None, tree=False):
         except psutil.Error:
             return
         while not done.is_set():
-            own[0] = max(own[0], hwm(proc.pid))
+            own[0] = max(own[0], proc_mb(proc.pid, "status", "VmHWM:"))
             if tree:
                 try:
                     pids = [proc.pid] + [p.pid for p in root.children(recursive=True)]
                 except psutil.Error:
                     pids = [proc.pid]
-                total[0] = max(total[0], sum(pss(pid) for pid in pids))
+                total[0] = max(total[0], sum(proc_mb(pid, "smaps_rollup", "Pss:") for pid in pids))
             time.sleep(0.01 if tree else 0.005)
 
     sampler = threading.Thread(target=sample, daemon=True)
