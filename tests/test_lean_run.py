@@ -110,10 +110,9 @@ def test_the_run_figures_put_titles_where_matplotlib_would(tmp_path):
             assert np.array_equal(np.asarray(Image.open(a)), np.asarray(Image.open(b))), Path(a).name
 
 
-@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="forked copies draw on spare cores")
 def test_queued_figures_are_drawn_by_forked_copies_that_die_with_the_helper(tmp_path):
-    """Figures sent together are drawn side by side by copies of the helper (same pixels as
-    here); killing the helper ends its copies too."""
+    """Figures sent together are drawn side by side by copies of the helper, one per spare
+    core (none on one core), with the same pixels as here; killing the helper ends its copies."""
     import threading
     import time
 
@@ -143,12 +142,15 @@ def test_queued_figures_are_drawn_by_forked_copies_that_die_with_the_helper(tmp_
         paths = [p for t in tickets for p in helper.result(t)]
         stop.set()
         watcher.join()
-    assert seen, "no forked copy drew while figures were queued"
+    spare = len(os.sched_getaffinity(0)) >= 2
+    assert bool(seen) == spare, f"forked copies {sorted(seen)} with spare cores: {spare}"
     assert sorted(Path(p).name for p in paths) == [f"detections_ping{d['ping_index']}.png" for d in data]
     for d, path in zip(data, paths):
         here = draw_detection_figure(d, tmp_path / "here")
         assert np.array_equal(np.asarray(Image.open(here)), np.asarray(Image.open(path)))
 
+    if not spare:
+        return
     helper = FigureWorker()
     for d in data * 3:
         helper.submit("draw_detection_figure", d, tmp_path / "killed")
