@@ -209,13 +209,11 @@ def _serve(read_fd: int, write_fd: int):
                 return
 
     threading.Thread(target=read, daemon=True).start()
-    import importlib
-
     import matplotlib
     matplotlib.use("Agg")
     import processing.plots  # noqa: F401  (the figures of every run: loaded before they are asked for)
     _warm_up()
-    copies: dict = {}        # pid of a forked copy -> the ticket it draws
+    copies: set = set()      # pids of the forked copies still drawing
     most = _spare_drawers()
     while True:
         item = jobs.get()
@@ -235,13 +233,13 @@ def _serve(read_fd: int, write_fd: int):
             if pid == 0:
                 try:
                     _die_with_parent()
-                    _answer(send, _draw(importlib, ticket, job, data, outdir))
+                    _answer(send, _draw(job, ticket, data, outdir))
                 finally:
                     os._exit(0)
             if pid is not None:
-                copies[pid] = ticket
+                copies.add(pid)
                 continue
-        _answer(send, _draw(importlib, ticket, job, data, outdir))
+        _answer(send, _draw(job, ticket, data, outdir))
 
 
 def _spare_drawers() -> int:
@@ -253,7 +251,7 @@ def _spare_drawers() -> int:
     return max(0, min(3, n - 1))
 
 
-def _reap(copies: dict, *, wait: bool):
+def _reap(copies: set, *, wait: bool):
     """Collect the forked copies that ended (all of them with ``wait``)."""
     for pid in list(copies):
         try:
@@ -261,11 +259,12 @@ def _reap(copies: dict, *, wait: bool):
         except ChildProcessError:
             done = pid
         if done:
-            del copies[pid]
+            copies.discard(pid)
 
 
-def _draw(importlib, ticket, job, data, outdir):
+def _draw(job, ticket, data, outdir):
     """(ticket, True, names of the files written in ``outdir``) or (ticket, False, the error)."""
+    import importlib
     import traceback
     from pathlib import Path
     try:
