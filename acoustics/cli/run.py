@@ -7,7 +7,8 @@ each again staged and renamed, so a failure or Ctrl-C while drawing never costs 
 never leaves half a folder. The figures are drawn by a helper process
 (:mod:`acoustics.cli.figure_worker`) beside this one: it starts importing matplotlib at once,
 draws the first ping's images (into a hidden scratch folder) while the pings are simulated and
-processed, and shares the remaining figures with this process once the numbers are saved.
+processed, and the detection and count figures (with forked copies of itself, on spare cores)
+while the numbers are written; this process only waits for them before placing their folders.
 """
 from __future__ import annotations
 
