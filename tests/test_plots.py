@@ -1,0 +1,78 @@
+"""Figures show the data where they are: the fan-beam resampling is exact where bilinear
+interpolation must be, and axes are ticked in the units their quantity comes in."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from processing.plots import _bilinear, fan_beam
+
+
+def test_fan_beam_is_exact_for_a_field_bilinear_in_range_and_sine():
+    """FFT beams are uniform in sin θ and samples in range, so a field bilinear in (r, sin θ)
+    is bilinear in the image's fractional indices, where bilinear interpolation is exact: every
+    pixel inside the fan is the field at the pixel's (r, sin θ) to rounding (1e-12 of its span)."""
+    range_m = np.linspace(2.0, 30.0, 701)
+    sin_theta = np.linspace(-0.12, 0.12, 64)
+    theta = np.arcsin(sin_theta)
+
+    def field(r, s):
+        return 1.0 + 0.3 * r - 40.0 * s + 2.5 * r * s
+
+    values = field(range_m[:, None], sin_theta[None, :])
+    x, z, img, inside = fan_beam(values, range_m, theta, pixel_m=0.05, with_mask=True)
+    zz, xx = np.meshgrid(z, x, indexing="ij")
+    expected = field(np.hypot(xx, zz), xx / np.hypot(xx, zz))
+    span = values.max() - values.min()
+    assert inside.sum() > 0.25 * inside.size
+    np.testing.assert_allclose(img[inside], expected[inside], rtol=0, atol=1e-12 * span)
+    assert np.all(img[~inside] == 0)
+
+
+def test_fan_beam_puts_a_point_echo_where_it_is():
+    """One bright cell at (r0, θ0): the brightest pixel lies at x = r0 sin θ0, z = r0 cos θ0,
+    within one pixel in each direction (the cell's footprint spans several pixels)."""
+    range_m = np.linspace(5.0, 25.0, 401)
+    theta = np.arcsin(np.linspace(-0.12, 0.12, 64))
+    mag = np.zeros((range_m.size, theta.size))
+    i, j = 250, 47
+    mag[i, j] = 1.0
+    x, z, img = fan_beam(mag, range_m, theta, pixel_m=0.02)
+    k = np.unravel_index(np.argmax(img), img.shape)
+    assert abs(x[k[1]] - range_m[i] * np.sin(theta[j])) <= 0.02
+    assert abs(z[k[0]] - range_m[i] * np.cos(theta[j])) <= 0.02
+
+
+@pytest.mark.parametrize("shape", [(700, 128), (2, 2), (1, 5), (5, 1), (1, 1)])
+def test_bilinear_agrees_with_scipy_map_coordinates(shape):
+    """The written-out interpolation is ``scipy.ndimage.map_coordinates(order=1)`` inside the
+    grid, to rounding, including points on its last row and column and one-sample axes."""
+    from scipy.ndimage import map_coordinates
+    rng = np.random.default_rng(7)
+    values = rng.normal(size=shape)
+    i = rng.uniform(0, shape[0] - 1, (50, 60))
+    j = rng.uniform(0, shape[1] - 1, (50, 60))
+    i[0, :4] = [0, shape[0] - 1, 0, shape[0] - 1]
+    j[0, :4] = [0, shape[1] - 1, shape[1] - 1, 0]
+    want = map_coordinates(values, [i, j], order=1)
+    np.testing.assert_allclose(_bilinear(values, i, j), want, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("n_pings", [1, 3, 7])
+def test_counts_are_plotted_against_whole_pings(n_pings):
+    """A ping index is a whole number: every tick on the ping axis is one (matplotlib's default
+    locator puts a 3-ping run's ticks at quarter pings)."""
+    import matplotlib.pyplot as plt
+
+    from processing.plots import counts_figure
+    x = np.arange(n_pings)
+    c = {"ping_index": x, "true_in_volume": np.full(n_pings, 5), "count_before": x + 4,
+         "count_after": np.full(n_pings, 5), "error_before": x - 1, "error_after": 0 * x}
+    fig = counts_figure(c)
+    fig.canvas.draw()
+    for ax in fig.axes:
+        lo, hi = ax.get_xlim()
+        ticks = [t for t in ax.get_xticks() if lo <= t <= hi]
+        assert ticks, "no tick on the ping axis"
+        assert all(float(t).is_integer() for t in ticks), ticks
+    plt.close(fig)
