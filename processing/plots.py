@@ -13,8 +13,8 @@ from .atomic import staged
 
 __all__ = ["fan_beam", "plot_fan", "plot_range_profiles", "plot_phase_map", "save", "fixed_layout",
            "image_figures", "image_figure_data", "draw_image_figures", "count_figures",
-           "count_figure_data", "draw_detection_figure", "draw_counts_figure", "counts_figure",
-           "PNG_COMPRESS_LEVEL"]
+           "count_figure_data", "draw_detection_figure", "draw_detection_figures",
+           "draw_counts_figure", "counts_figure", "PNG_COMPRESS_LEVEL"]
 
 #: zlib level of the PNGs: 3 encodes the run's figures in half the time of the default 6, for
 #: files ≈ 10 % larger (measured on the default scene's 11 figures: 0.60 → 0.35 s, 1.9 → 2.1 MB)
@@ -125,6 +125,22 @@ def plot_fan(ax, magnitude, range_m, beam_angle_rad, *, dynamic_range_db=40.0, t
     a quarter of a range sample) and drawn as one raster (``imshow``): a figure costs what it
     shows, not one polygon per range sample.
     """
+    db, extent = _fan_raster(ax, magnitude, range_m, beam_angle_rad)
+    m = ax.imshow(db, origin="lower", extent=extent, cmap="viridis", vmin=-dynamic_range_db,
+                  vmax=0, interpolation="nearest", aspect="equal")
+    ax.set_facecolor("white")
+    ax.set_xlabel("across-track x (m)")
+    ax.set_ylabel("along boresight z (m)")
+    ax.set_title(title)
+    cb = ax.figure.colorbar(m, ax=ax, fraction=0.046, pad=0.04)
+    cb.set_label("|I| (dB re max)")
+    if detections is not None and len(detections[0]):
+        _mark_detections(ax, *detections)
+    return m
+
+
+def _fan_raster(ax, magnitude, range_m, beam_angle_rad):
+    """The fan image of ``ax`` in dB re its maximum (masked outside the fan) and its extent."""
     r = np.asarray(range_m, float)
     th = np.asarray(beam_angle_rad, float)
     x_max = r[-1] * np.sin(np.abs(th).max())
@@ -134,22 +150,15 @@ def plot_fan(ax, magnitude, range_m, beam_angle_rad, *, dynamic_range_db=40.0, t
     pixel = max(extent / _axes_pixels(ax), dr / 4, 1e-4)
     x, z, img, inside = fan_beam(magnitude, r, th, pixel_m=pixel, with_mask=True)
     ref = max(float(np.max(magnitude)), 1e-300)
-    db = np.ma.masked_where(~inside, _db(img, ref))
     half = pixel / 2
-    m = ax.imshow(db, origin="lower", extent=(x[0] - half, x[-1] + half, z[0] - half, z[-1] + half),
-                  cmap="viridis", vmin=-dynamic_range_db, vmax=0, interpolation="nearest",
-                  aspect="equal")
-    ax.set_facecolor("white")
-    ax.set_xlabel("across-track x (m)")
-    ax.set_ylabel("along boresight z (m)")
-    ax.set_title(title)
-    cb = ax.figure.colorbar(m, ax=ax, fraction=0.046, pad=0.04)
-    cb.set_label("|I| (dB re max)")
-    if detections is not None and len(detections[0]):
-        ax.plot(detections[0], detections[1], "o", mfc="none", mec="r", ms=9, mew=1.2,
-                label="detections")
-        ax.legend(loc="upper right", fontsize=8)
-    return m
+    return (np.ma.masked_where(~inside, _db(img, ref)),
+            (x[0] - half, x[-1] + half, z[0] - half, z[-1] + half))
+
+
+def _mark_detections(ax, x_m, z_m):
+    line, = ax.plot(x_m, z_m, "o", mfc="none", mec="r", ms=9, mew=1.2, label="detections")
+    ax.legend(loc="upper right", fontsize=8)
+    return line
 
 
 def _raster(ax, values, range_m, beam_angle_rad, **kw):
@@ -300,7 +309,7 @@ def count_figures(tree, outdir: Path, *, pings=(0,), max_pings: int = 5,
     positions seen from above and from the side) and, with ``counts``, counts.png (counts and
     errors vs ping)."""
     data = count_figure_data(tree, pings=pings, max_pings=max_pings, counts=counts)
-    paths = [draw_detection_figure(d, outdir) for d in data["detections"]]
+    paths = draw_detection_figures(data["detections"], outdir)
     if data["counts"] is not None:
         paths.append(draw_counts_figure(data["counts"], outdir))
     return paths
@@ -361,42 +370,120 @@ def count_figure_data(tree, *, pings=(0,), max_pings: int = 5, counts: bool = Tr
             "counts": {k: cnt[k] for k in keys if k in cnt} if counts else None}
 
 
-@_titles_at_the_top
 def draw_detection_figure(d: dict, outdir: Path) -> Path:
     """detections_ping<k>.png from one entry of :func:`count_figure_data`."""
+    return draw_detection_figures([d], outdir)[0]
+
+
+@_titles_at_the_top
+def draw_detection_figures(ds: list, outdir: Path) -> list[Path]:
+    """detections_ping<k>.png for each entry of :func:`count_figure_data`'s ``detections``.
+
+    One figure serves every ping of the same image geometry: its axes, ticks, colour bar,
+    legends and counting volume are made once, and each further ping only changes the data
+    (fan image, markers, titles, limits). Same pixels as a figure per ping, for ≈ 60 % of the
+    work (measured on the default scene's three pings: 1.28 → 0.74 CPU-s).
+    """
     import matplotlib
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
-    fig, axes = plt.subplots(1, 3, figsize=(16, 6))
-    fixed_layout(fig, left=0.7, right=0.2, wspace=0.3)
-    inside = d["in_volume"]
-    plot_fan(axes[0], d["magnitude"], d["range_m"], d["beam_angle_rad"],
-             title=f"ping {d['ping_index']}: {inside.size} detections",
-             detections=(d["fan_x_m"], d["fan_z_m"]))
-    pos, tp = d["position_m"], d["truth_m"]
-    for ax, (i, j, lab) in zip(axes[1:], ((0, 2, "x (m)"), (1, 2, "y (m)"))):
-        if tp is not None:
-            ax.plot(tp[:, i], tp[:, j], ".", color="0.6", ms=4, label="true targets")
-        ax.plot(pos[~inside, i], pos[~inside, j], "x", color="tab:orange", label="located, outside volume")
-        ax.plot(pos[inside, i], pos[inside, j], "o", mfc="none", mec="tab:green", ms=8,
-                label="located, inside volume")
-        ax.set_xlabel(f"sonar {lab}")
-        ax.set_ylabel("sonar z (m)")
-        ax.grid(alpha=0.3)
-    rr = np.array(d["counting_range_m"])
-    for ax, hw in ((axes[1], d["azimuth_halfwidth_rad"]), (axes[2], d["elevation_halfwidth_rad"])):
-        for s in (-1, 1):
-            ax.plot(s * rr * np.sin(hw), rr * np.cos(hw), "k-", lw=0.8)
-    axes[1].set_title("seen from above (x–z): counting volume in azimuth")
-    axes[2].set_title("seen from the side (y–z): counting volume in elevation")
-    axes[2].set_xlim(-1.5, 1.5)
-    axes[1].legend(fontsize=8, loc="lower left")
-    path = save(fig, outdir / f"detections_ping{d['ping_index']}.png")
-    plt.close(fig)
-    return path
+    paths, figure = [], None
+    try:
+        for d in ds:
+            if figure is not None and figure.fits(d):
+                figure.show(d)
+            else:
+                if figure is not None:
+                    figure.close()
+                figure = _DetectionFigure(d)
+            paths.append(save(figure.figure, outdir / f"detections_ping{d['ping_index']}.png"))
+    finally:
+        if figure is not None:
+            figure.close()
+    return paths
+
+
+class _DetectionFigure:
+    """The figure of detections_ping<k>.png: made for one ping exactly as a figure of its own,
+    then shown for others (:meth:`show`) that :meth:`fits`."""
+
+    #: the side views: (axes index, position columns drawn, horizontal label)
+    SIDES = ((1, 0, 2, "x (m)"), (2, 1, 2, "y (m)"))
+
+    def __init__(self, d: dict):
+        import matplotlib.pyplot as plt
+        fig, axes = plt.subplots(1, 3, figsize=(16, 6))
+        fixed_layout(fig, left=0.7, right=0.2, wspace=0.3)
+        self.figure, self.axes, self._d = fig, axes, d
+        inside = d["in_volume"]
+        self._image = plot_fan(axes[0], d["magnitude"], d["range_m"], d["beam_angle_rad"],
+                               title=self._title(d), detections=(d["fan_x_m"], d["fan_z_m"]))
+        self._marks = axes[0].lines[0] if axes[0].lines else None
+        pos, tp = d["position_m"], d["truth_m"]
+        self._lines = []
+        for k, i, j, lab in self.SIDES:
+            ax = axes[k]
+            truth = (ax.plot(tp[:, i], tp[:, j], ".", color="0.6", ms=4, label="true targets")[0]
+                     if tp is not None else None)
+            outside, = ax.plot(pos[~inside, i], pos[~inside, j], "x", color="tab:orange",
+                               label="located, outside volume")
+            located, = ax.plot(pos[inside, i], pos[inside, j], "o", mfc="none", mec="tab:green",
+                               ms=8, label="located, inside volume")
+            self._lines.append((truth, outside, located))
+            ax.set_xlabel(f"sonar {lab}")
+            ax.set_ylabel("sonar z (m)")
+            ax.grid(alpha=0.3)
+        rr = np.array(d["counting_range_m"])
+        for ax, hw in ((axes[1], d["azimuth_halfwidth_rad"]), (axes[2], d["elevation_halfwidth_rad"])):
+            for s in (-1, 1):
+                ax.plot(s * rr * np.sin(hw), rr * np.cos(hw), "k-", lw=0.8)
+        axes[1].set_title("seen from above (x–z): counting volume in azimuth")
+        axes[2].set_title("seen from the side (y–z): counting volume in elevation")
+        axes[2].set_xlim(-1.5, 1.5)
+        axes[1].legend(fontsize=8, loc="lower left")
+
+    @staticmethod
+    def _title(d) -> str:
+        return f"ping {d['ping_index']}: {d['in_volume'].size} detections"
+
+    def fits(self, d: dict) -> bool:
+        """Whether ``d`` has this figure's image grid, counting volume and truth (or none)."""
+        a = self._d
+        return (np.array_equal(a["range_m"], d["range_m"])
+                and np.array_equal(a["beam_angle_rad"], d["beam_angle_rad"])
+                and (a["truth_m"] is None) == (d["truth_m"] is None)
+                and all(np.array_equal(a[k], d[k]) for k in
+                        ("counting_range_m", "azimuth_halfwidth_rad", "elevation_halfwidth_rad")))
+
+    def show(self, d: dict):
+        """Show ping ``d`` (one that :meth:`fits`) instead of the one shown."""
+        ax = self.axes[0]
+        self._image.set_data(_fan_raster(ax, d["magnitude"], d["range_m"], d["beam_angle_rad"])[0])
+        ax.set_title(self._title(d))
+        if len(d["fan_x_m"]) and self._marks is not None:
+            self._marks.set_data(d["fan_x_m"], d["fan_z_m"])
+        elif len(d["fan_x_m"]):
+            self._marks = _mark_detections(ax, d["fan_x_m"], d["fan_z_m"])
+        elif self._marks is not None:      # a figure of its own has neither markers nor legend
+            self._marks.remove()
+            ax.get_legend().remove()
+            self._marks = None
+        inside, pos, tp = d["in_volume"], d["position_m"], d["truth_m"]
+        for (k, i, j, _), (truth, outside, located) in zip(self.SIDES, self._lines):
+            if truth is not None:
+                truth.set_data(tp[:, i], tp[:, j])
+            outside.set_data(pos[~inside, i], pos[~inside, j])
+            located.set_data(pos[inside, i], pos[inside, j])
+        for ax in self.axes:
+            ax.relim()
+            ax.autoscale_view()
+        self._d = d
+
+    def close(self):
+        import matplotlib.pyplot as plt
+        plt.close(self.figure)
 
 
 @_titles_at_the_top

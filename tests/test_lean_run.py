@@ -117,8 +117,8 @@ def test_the_run_figures_put_titles_where_matplotlib_would(tmp_path):
     tree = processing.count(acoustics.simulate(acoustics.load_scene("default"), pings=range(1)))
     images = plots.image_figure_data(figure_images(tree, [0]))
     counts = plots.count_figure_data(tree, pings=[0])
-    for draw in (plots.draw_image_figures, plots.draw_detection_figure, plots.draw_counts_figure):
-        data = {plots.draw_image_figures: images, plots.draw_detection_figure: counts["detections"][0],
+    for draw in (plots.draw_image_figures, plots.draw_detection_figures, plots.draw_counts_figure):
+        data = {plots.draw_image_figures: images, plots.draw_detection_figures: counts["detections"],
                 plots.draw_counts_figure: counts["counts"]}[draw]
         fast, auto = draw(data, tmp_path / "fast"), draw.__wrapped__(data, tmp_path / "auto")
         for a, b in zip(*(p if isinstance(p, list) else [p] for p in (fast, auto))):
@@ -153,7 +153,9 @@ def test_queued_figures_are_drawn_by_forked_copies_that_die_with_the_helper(tmp_
     with FigureWorker() as helper:
         watcher = threading.Thread(target=watch, args=(helper._proc.pid,), daemon=True)
         watcher.start()
-        tickets = [helper.submit("draw_detection_figure", d, tmp_path / "there") for d in data]
+        # sent together, so that the helper finds them all waiting (one by one, the second
+        # could still be on its way when the helper takes the first)
+        tickets = helper.submit_together([("draw_detection_figure", d, tmp_path / "there") for d in data])
         paths = [p for t in tickets for p in helper.result(t)]
         stop.set()
         watcher.join()
@@ -167,8 +169,7 @@ def test_queued_figures_are_drawn_by_forked_copies_that_die_with_the_helper(tmp_
     if not spare:
         return
     helper = FigureWorker()
-    for d in data * 3:
-        helper.submit("draw_detection_figure", d, tmp_path / "killed")
+    helper.submit_together([("draw_detection_figure", d, tmp_path / "killed") for d in data * 3])
     deadline, copies = time.monotonic() + 120, []
     while not copies and time.monotonic() < deadline:
         copies = psutil.Process(helper._proc.pid).children()
@@ -191,6 +192,8 @@ def test_a_figure_that_fails_is_one_error_and_the_helper_ends(tmp_path):
     helper = FigureWorker()
     with pytest.raises(ValueError, match="unknown figure job"):
         helper.submit("os.system", {}, tmp_path)
+    with pytest.raises(ValueError, match="unknown figure job"):    # nothing of the batch is sent
+        helper.submit_together([("draw_counts_figure", {}, tmp_path), ("os.system", {}, tmp_path)])
     ticket = helper.submit("draw_counts_figure", {"ping_index": np.arange(3)}, tmp_path)
     with pytest.raises(FigureError, match="draw_counts_figure"):
         helper.result(ticket)

@@ -76,3 +76,26 @@ def test_counts_are_plotted_against_whole_pings(n_pings):
         assert ticks, "no tick on the ping axis"
         assert all(float(t).is_integer() for t in ticks), ticks
     plt.close(fig)
+
+
+def test_one_detection_figure_redrawn_per_ping_gives_each_ping_its_own_pixels(tmp_path):
+    """detections_ping<k>.png from one figure whose data change from ping to ping are the
+    pixels of a figure made for each ping alone, through pings with and without detections
+    (markers and legend removed, then made again) and changing limits."""
+    from PIL import Image
+
+    import acoustics
+    import processing
+    from processing.plots import count_figure_data, draw_detection_figures
+    tree = processing.count(acoustics.simulate(acoustics.load_scene("default"), pings=range(3)))
+    d0, d1, d2 = count_figure_data(tree, pings=range(3))["detections"]
+    none = dict(d1, ping_index=7, fan_x_m=d1["fan_x_m"][:0], fan_z_m=d1["fan_z_m"][:0],
+                position_m=d1["position_m"][:0], in_volume=d1["in_volume"][:0])
+    far = dict(d2, ping_index=8, position_m=d2["position_m"] * [1.0, 1.0, 1.6])
+    sequence = [d0, none, d1, far, d2]
+    assert len(d0["fan_x_m"]) and len(d1["fan_x_m"])
+    together = draw_detection_figures(sequence, tmp_path / "together")
+    alone = [draw_detection_figures([d], tmp_path / f"alone{k}")[0] for k, d in enumerate(sequence)]
+    for a, b in zip(together, alone):
+        assert a.name == b.name
+        assert np.array_equal(np.asarray(Image.open(a)), np.asarray(Image.open(b))), a.name

@@ -167,26 +167,24 @@ def _command(argv) -> int:
     args = parser.parse_args(argv)   # --help and --version end here, before any heavy import
     _install_signal_handlers()
     try:
-        from processing.config import ConfigError
-        from processing.dataset import DatasetError
-        from processing.noise import NoiseEstimateError
-        from processing.resources import ResourceError
-
-        from acoustics.cli.common import UsageError
+        def loaded(*errors):
+            # an error class whose module was never imported cannot have been raised: the
+            # classes are looked up when an error arrives, so that no command waits for
+            # their modules before it starts (xarray, pydantic: ≈ 0.5 s, which `abacus run`
+            # spends with its figure helper already importing matplotlib beside it)
+            return tuple(getattr(sys.modules[module], name) for module, name in errors
+                         if module in sys.modules)
 
         def user_errors():
-            # the experiment and mesh modules are heavy (Dask, trimesh: 0.6 s of a run's start)
-            # and only a command that imported them can raise their errors
-            found = [ConfigError, DatasetError, NoiseEstimateError, UsageError]
-            for module, name in (("acoustics.experiment", "ExperimentError"),
-                                 ("acoustics.paths.meshes", "MeshError")):
-                if module in sys.modules:
-                    found.append(getattr(sys.modules[module], name))
-            return tuple(found)
+            return loaded(("processing.config", "ConfigError"), ("processing.dataset", "DatasetError"),
+                          ("processing.noise", "NoiseEstimateError"),
+                          ("acoustics.cli.common", "UsageError"),
+                          ("acoustics.experiment", "ExperimentError"),
+                          ("acoustics.paths.meshes", "MeshError"))
         warnings.showwarning = _show_warning
         try:
             return int(args.func(args) or 0)
-        except ResourceError as exc:
+        except loaded(("processing.resources", "ResourceError")) as exc:
             print(f"error: {exc}", file=sys.stderr)
             return EXIT_RESOURCES
         except user_errors() as exc:

@@ -11,9 +11,9 @@ folders it is told (the command's staged temporaries), and answers each with the
 It runs at the command's priority: on two cores, drawing beside the physics (and slowing it)
 ends sooner than drawing only in its gaps and leaving a serial tail (measured: a lower priority,
 or a second helper, made the run no faster). When figures queue up (the counts' figures, sent
-together once the numbers exist and drawn while the command only writes and waits) the helper
-forks copies of itself, matplotlib already imported and warm, to draw them side by side, one
-per spare core. The helper never outlives the command: it ignores SIGINT (the command handles
+together — one message, :meth:`FigureWorker.submit_together` — once the numbers exist and drawn
+while the command only writes and waits) the helper forks copies of itself, matplotlib already
+imported and warm, to draw them side by side, one per spare core. The helper never outlives the command: it ignores SIGINT (the command handles
 Ctrl-C and ends it), is killed with the command (``PR_SET_PDEATHSIG`` on Linux, as are its
 copies with it) and by :func:`stop_all`, which the CLI's exit path calls before it removes the
 temporaries the helper may be writing into; it leads its own process group, so that one signal
@@ -31,7 +31,8 @@ __all__ = ["FigureWorker", "FigureError", "stop_all", "JOBS"]
 
 #: what a helper can be asked to draw: function(data, outdir) -> the module that defines it
 JOBS = {"draw_image_figures": "processing.plots", "draw_detection_figure": "processing.plots",
-        "draw_counts_figure": "processing.plots", "plot_beam_figures": "acoustics.sonar.plots"}
+        "draw_detection_figures": "processing.plots", "draw_counts_figure": "processing.plots",
+        "plot_beam_figures": "acoustics.sonar.plots"}
 
 #: workers of this process still running (for :func:`stop_all`)
 _LIVE: set = set()
@@ -95,16 +96,26 @@ class FigureWorker:
 
     def submit(self, job: str, data, outdir) -> int:
         """Queue a drawing; returns a ticket for :meth:`result`."""
-        if job not in JOBS:
-            raise ValueError(f"unknown figure job {job!r}; accepted: {', '.join(JOBS)}")
-        ticket = self._next
-        self._next += 1
+        return self.submit_together([(job, data, outdir)])[0]
+
+    def submit_together(self, jobs) -> list[int]:
+        """Queue drawings, ``(job, data, outdir)`` each, that reach the helper as one message:
+        it finds them all waiting and draws them side by side (forked copies, one per spare
+        core), where jobs sent one by one could find the second still on its way and be drawn
+        one after the other. Returns their tickets, in order."""
+        jobs = list(jobs)
+        for job, _, _ in jobs:
+            if job not in JOBS:
+                raise ValueError(f"unknown figure job {job!r}; accepted: {', '.join(JOBS)}")
+        batch = [(self._next + k, job, data, str(outdir)) for k, (job, data, outdir) in enumerate(jobs)]
+        self._next += len(batch)
         try:
-            self._send.send((ticket, job, data, str(outdir)))
+            self._send.send(batch)
         except OSError:
             raise self._died() from None
-        self._folder[ticket] = str(outdir)
-        return ticket
+        for ticket, _, _, outdir in batch:
+            self._folder[ticket] = outdir
+        return [ticket for ticket, *_ in batch]
 
     def result(self, ticket: int) -> list:
         """The paths the job ``ticket`` wrote (waits for it); raises :class:`FigureError`."""
@@ -185,6 +196,7 @@ def _warm_up():
 
 
 def _serve(read_fd: int, write_fd: int):
+    import collections
     import queue
     import signal
     import threading
@@ -215,15 +227,19 @@ def _serve(read_fd: int, write_fd: int):
     _warm_up()
     copies: set = set()      # pids of the forked copies still drawing
     most = _spare_drawers()
+    waiting = collections.deque()   # jobs of the batches taken off the queue, not yet drawn
     while True:
-        item = jobs.get()
-        _reap(copies, wait=item is None)
-        if item is None:
-            # the command is done with it: every answer is sent, nothing is left to flush, and
-            # tearing matplotlib's interpreter down would only keep the command waiting
-            os._exit(0)
-        ticket, job, data, outdir = item
-        if not jobs.empty() and len(copies) < most:
+        if not waiting:
+            batch = jobs.get()
+            if batch is None:
+                # the command is done with it: every answer is sent, nothing is left to flush,
+                # and tearing matplotlib's interpreter down would only keep the command waiting
+                _reap(copies, wait=True)
+                os._exit(0)
+            waiting.extend(batch)
+        _reap(copies, wait=False)
+        ticket, job, data, outdir = waiting.popleft()
+        if (waiting or not jobs.empty()) and len(copies) < most:
             # more figures wait than this process draws at once (the counts after the numbers):
             # a forked copy, matplotlib already warm, draws this one beside it
             try:

@@ -52,20 +52,21 @@ def command(args) -> int:
     import time
     from contextlib import ExitStack
 
-    import processing
-    from acoustics.cli.beams import beam_numbers
-    from acoustics.simulation.run import simulate
-    from acoustics.simulation.stages import StageLog
-    from processing.atomic import staged, write_text_atomic
-    from processing.dataset import write_tree
-    log = StageLog()
-    log.add("start", time.perf_counter() - _T0)
     with ExitStack() as stack:
-        # the figure helper starts first: it imports matplotlib while this process computes
+        # the figure helper starts first of all: it imports matplotlib on the core that this
+        # process' own imports leave idle, then draws while this process computes
         helper = None
         if args.plots:
             from acoustics.cli.figure_worker import FigureWorker
             helper = stack.enter_context(FigureWorker())
+        import processing
+        from acoustics.cli.beams import beam_numbers
+        from acoustics.simulation.run import simulate
+        from acoustics.simulation.stages import StageLog
+        from processing.atomic import staged, write_text_atomic
+        from processing.dataset import write_tree
+        log = StageLog()
+        log.add("start", time.perf_counter() - _T0)
         with log.stage("load"):
             scene = load(args.scene)
         if args.output:
@@ -149,36 +150,38 @@ class _RunFigures:
         self._stack, self._helper, self._outdir = stack, helper, outdir
         self._folders: dict = {}
 
-    def _submit(self, name: str, job: str, data):
+    def _submit(self, name: str, *jobs):
+        """Send ``(job, data)`` pairs drawn into the scratch folder ``name``, together."""
         from processing.atomic import scratch
         if name not in self._folders:
             # named so that any later write of the run folder removes it if this process is killed
             folder = self._stack.enter_context(scratch(self._outdir.parent, f"{self._outdir.name}.{name}"))
             self._folders[name] = (folder, [])
         folder, tickets = self._folders[name]
-        tickets.append(self._helper.submit(job, data, folder))
+        tickets.extend(self._helper.submit_together([(job, data, folder) for job, data in jobs]))
 
     def images(self, tree):
         """images/: the image figures of the dataset's first ping."""
         from processing.plots import image_figure_data
         from processing.products import figure_images
-        self._submit("images", "draw_image_figures", image_figure_data(figure_images(tree, [0])))
+        self._submit("images", ("draw_image_figures", image_figure_data(figure_images(tree, [0]))))
 
     def counts(self, tree):
         """counts/: detections of the first three pings, and counts per ping."""
         from processing.plots import count_figure_data
         n = tree["Processing/Counts"].sizes["ping_time"]
         data = count_figure_data(tree, pings=range(min(n, 3)))
-        for d in data["detections"]:
-            self._submit("counts", "draw_detection_figure", d)
-        self._submit("counts", "draw_counts_figure", data["counts"])
+        # the pings share one figure (made once, its data changed per ping: less work than a
+        # figure each drawn side by side); counts.png is drawn beside them
+        self._submit("counts", ("draw_detection_figures", data["detections"]),
+                     ("draw_counts_figure", data["counts"]))
 
     def beams(self, scene):
         """beams/: copied from the geometry cache, or drawn by the helper (and then cached)."""
         from acoustics.cli.beams import beam_cuts_of, cached_beam_figures
         self._beam_pngs = cached_beam_figures(scene)
         if self._beam_pngs is None:
-            self._submit("beams", "plot_beam_figures", beam_cuts_of(scene))
+            self._submit("beams", ("plot_beam_figures", beam_cuts_of(scene)))
 
     def place(self, scene):
         """Wait for every drawing; each figure folder appears whole in the run folder."""
