@@ -456,7 +456,9 @@ def probes() -> list[Probe]:
         setup=exp_then(lambda e: (shutil.rmtree(e / "parts"), (e / "parts").write_text("x"))))
 
     # --- interrupts: prompt, clean, and a later run completes
-    slow = scene("pings: {count: 400}\nsampling: {samples: 4096, time_offset_s: 0.0}\nnoise: {enabled: true}\n",
+    # slow enough that every interrupt lands mid-run: 400 pings had come to take 4–5 s, and a
+    # quiet machine finished them before the SIGKILL at 4 s (the probe then found s.nc written)
+    slow = scene("pings: {count: 1200}\nsampling: {samples: 4096, time_offset_s: 0.0}\nnoise: {enabled: true}\n",
                  base=BASE.replace("sampling: {samples: 1024, time_offset_s: 0.017}\n", ""))
     for when in (0.8, 2.5, 5.0):
         add("interrupts", f"SIGINT during simulate at {when} s", ["simulate", "s.yaml", "-o", "s.nc"],

@@ -294,7 +294,11 @@ def experiment():
 
 def _child(cmd, *, cwd, env=None, tree=False):
     """Run a command; (wall s, peak RSS of the command's own process in MB, peak memory of its
-    process tree in MB, stdout).
+    process tree in MB, stdout, CPU s of its process tree).
+
+    CPU: user + system time of the command and every descendant it waited for (the figure
+    helper, which waits for its forked copies), from this process' ``RUSAGE_CHILDREN``; unlike
+    wall time it hardly depends on what else the machine runs.
 
     Peaks are read from /proc: the process' own high-water mark (VmHWM, exact up to the last
     5 ms) and, with ``tree``, the largest sum of the proportional set sizes (PSS) of it and its
@@ -319,6 +323,13 @@ def _child(cmd, *, cwd, env=None, tree=False):
             pass
         return 0.0
 
+    import resource
+
+    def children_cpu_s():
+        r = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return r.ru_utime + r.ru_stime
+
+    cpu0 = children_cpu_s()
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
@@ -349,7 +360,7 @@ def _child(cmd, *, cwd, env=None, tree=False):
     sampler.join()
     if proc.returncode != 0:
         raise RuntimeError(f"{' '.join(map(str, cmd))} failed ({proc.returncode}): {err[-2000:]}")
-    return wall, own[0], max(total[0], own[0]), out
+    return wall, own[0], max(total[0], own[0]), out, children_cpu_s() - cpu0
 
 
 _API_STAGES = r"""
@@ -417,21 +428,25 @@ def end_to_end():
             return res, out
 
         run("warmup")                                     # fills the geometry cache
-        best = {}
+        best, cpus = {}, {}
         for rep in range(5):                              # interleaved: the machine drifts
             api_stages()                                  # the reference, in a warm process
             for tag, extra in (("plots", ()), ("noplots", ("--no-plots",))):
-                (wall, rss, _, stdout), out = run(tag, *extra)
+                (wall, rss, _, stdout, cpu), out = run(tag, *extra)
+                cpus.setdefault(tag, []).append(cpu)
                 if wall < best.get(tag, (1e9,))[0]:
                     best[tag] = (wall, rss, (out / "run.nc").stat().st_size / 1e6,
                                  _stage_times(stdout))
             # cold in the same rounds (each with a cache of its own, empty), so that cold minus
             # warm is a difference of bests taken under the same drift
-            (wall, rss, _, _), _ = run(f"cold{rep}", cold=True)
+            (wall, rss, _, _, cpu), _ = run(f"cold{rep}", cold=True)
+            cpus.setdefault("cold", []).append(cpu)
             if wall < best.get("cold", (1e9,))[0]:
                 best["cold"] = (wall, rss)
         cold_wall, cold_rss = best["cold"]
-        (_, _, cold_tree, _), _ = run("cold-memory", cold=True, memory=True)
+        cpu = {tag: float(np.median(v)) for tag, v in cpus.items()}
+        cores = len(os.sched_getaffinity(0))
+        (_, _, cold_tree, _, _), _ = run("cold-memory", cold=True, memory=True)
         # memory in runs of their own: the process tree's PSS is too dear to read in timed runs
         peak = {tag: run(f"mem-{tag}", *extra, memory=True)[0] for tag, extra in
                 (("plots", ()), ("noplots", ("--no-plots",)))}
@@ -441,16 +456,16 @@ def end_to_end():
         w_p, rss_p, size_p, st_p = best["plots"]
         w_n, rss_n, _, st_n = best["noplots"]
         tree_p, tree_n = peak["plots"][2], peak["noplots"][2]
-        rows = [["API: simulate → image → detect → count (warm)", f"{api['literal']:.2f}", "1.00", "", "", ""],
+        rows = [["API: simulate → image → detect → count (warm)", f"{api['literal']:.2f}", "1.00", "", "", "", ""],
                 ["API: simulate → count (warm; count images and detects)", f"{api['lean']:.2f}",
-                 f"{api['lean'] / api['literal']:.2f}", "", "", ""],
+                 f"{api['lean'] / api['literal']:.2f}", "", "", "", ""],
                 ["`abacus run default` (plots on, warm)", f"{w_p:.2f}", f"{w_p / api['literal']:.2f}",
-                 f"{rss_p:.0f}", f"{tree_p:.0f}", f"{100 / w_p:.1f}"],
+                 f"{cpu['plots']:.2f}", f"{rss_p:.0f}", f"{tree_p:.0f}", f"{100 / w_p:.1f}"],
                 ["`abacus run default --no-plots` (warm)", f"{w_n:.2f}", f"{w_n / api['literal']:.2f}",
-                 f"{rss_n:.0f}", f"{tree_n:.0f}", f"{100 / w_n:.1f}"],
+                 f"{cpu['noplots']:.2f}", f"{rss_n:.0f}", f"{tree_n:.0f}", f"{100 / w_n:.1f}"],
                 ["`abacus run default` (plots on, cold: empty geometry cache)", f"{cold_wall:.2f}",
-                 f"{cold_wall / api['literal']:.2f}", f"{cold_rss:.0f}", f"{cold_tree:.0f}",
-                 f"{100 / cold_wall:.1f}"]]
+                 f"{cold_wall / api['literal']:.2f}", f"{cpu['cold']:.2f}", f"{cold_rss:.0f}",
+                 f"{cold_tree:.0f}", f"{100 / cold_wall:.1f}"]]
         stage_rows = []
         for label, wall, st in (("`--no-plots`", w_n, st_n), ("plots on", w_p, st_p)):
             named = sum(st.values())
@@ -471,7 +486,7 @@ def end_to_end():
                 ("`abacus count sim.nc -o cnt.nc`", exe + ["count", str(sim), "-o", str(cnt)], cnt)]
         per_cmd = []
         for label, cmd, path in cmds:
-            wall, rss, _, _ = _child(cmd, cwd=work, env=env)
+            wall, rss, _, _, _ = _child(cmd, cwd=work, env=env)
             per_cmd.append([label, f"{wall:.2f}", f"{path.stat().st_size / 1e6:.1f}", f"{rss:.0f}"])
         per_cmd.append(["`abacus run default` (run.nc; PSS of its process tree)", f"{w_p:.2f}", f"{size_p:.1f}", f"{tree_p:.0f}"])
 
@@ -482,7 +497,7 @@ def end_to_end():
         for rep in range(3):                      # interleaved: the machine drifts
             for tag, extra in layouts:
                 out = work / f"exp-{rep}-{tag.replace(' ', '')}"
-                wall, _, _, _ = _child(exe + ["experiment", "default", "--pings", "40", "--sweep",
+                wall, _, _, _, _ = _child(exe + ["experiment", "default", "--pings", "40", "--sweep",
                                               "threshold=600:2000:50", "-o", str(out), *extra],
                                        cwd=work, env=env)
                 exp[tag] = min(exp[tag], wall)
@@ -513,16 +528,22 @@ def end_to_end():
             "of their proportional set sizes (PSS: a page shared by two processes counts half in "
             "each), sampled every 10 ms.\n\n"
             + table(["what", "wall (s)", "vs API (simulate → image → detect → count)",
-                     "peak RSS, process (MB)", "peak PSS, process tree (MB)", "pings/s"], rows)
+                     "CPU, process tree (s; median)", "peak RSS, process (MB)",
+                     "peak PSS, process tree (MB)", "pings/s"], rows)
             + f"\n\nA cold start adds {cold_wall - w_p:.2f} s to the warm run (plots on; the "
-              "geometry cache filled: beam table, beamwidths, calibration, beam figures)."
+              "geometry cache filled: beam table, beamwidths, calibration, beam figures). "
+              f"The figures cost {cpu['plots'] - cpu['noplots']:.2f} CPU-s (plots on minus "
+              f"`--no-plots`, medians of the 5 rounds) against the run's {cpu['noplots']:.2f}: "
+              f"On {cores} cores no run ends before its CPU time shared by the cores: "
+              f"{cpu['noplots'] / cores:.2f} s `--no-plots`, {cpu['plots'] / cores:.2f} s with plots."
             + "\n\n**Where a run's time goes** (the run's own `time:` line, best runs above; *exit*: "
               "the wall time outside the named stages — interpreter start before the command's "
               "module, and the end of the process). *start* is the interpreter importing what "
               "the run uses; *simulate* includes loading the compiled kernels (numba, ≈ 0.5–0.7 s "
               "in a fresh process) and, with plots, simulating the first ping once more for the "
-              "figure helper; with plots the helper's drawing shares the cores with *simulate* and "
-              "*process*, and *figures* is only the wait after the numbers are saved.\n\n"
+              "figure helper; with plots the helper (started before the run's own imports) loads "
+              "matplotlib during *start* and draws the first ping's images during *simulate*, and "
+              "*figures* is only the wait after the numbers are saved.\n\n"
             + table(["run", "start", "load", "simulate", "process", "write", "figures", "exit",
                      "wall (s)"], stage_rows)
             + "\n\n**Memory**: what the run holds beyond what any run holds. A one-ping run "
