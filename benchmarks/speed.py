@@ -533,7 +533,7 @@ def end_to_end():
             + f"\n\nA cold start adds {cold_wall - w_p:.2f} s to the warm run (plots on; the "
               "geometry cache filled: beam table, beamwidths, calibration, beam figures). "
               f"The figures cost {cpu['plots'] - cpu['noplots']:.2f} CPU-s (plots on minus "
-              f"`--no-plots`, medians of the 5 rounds) against the run's {cpu['noplots']:.2f}: "
+              f"`--no-plots`, medians of the 5 rounds) against the run's {cpu['noplots']:.2f}. "
               f"On {cores} cores no run ends before its CPU time shared by the cores: "
               f"{cpu['noplots'] / cores:.2f} s `--no-plots`, {cpu['plots'] / cores:.2f} s with plots."
             + "\n\n**Where a run's time goes** (the run's own `time:` line, best runs above; *exit*: "

@@ -283,3 +283,27 @@ def test_a_cold_run_has_its_beam_figures_drawn_by_the_helper_and_cached(tmp_path
     for name in names:
         a, b = (np.asarray(Image.open(d / name)) for d in (tmp_path / "here", tmp_path / "out" / "beams"))
         assert a.shape == b.shape and np.array_equal(a, b), name
+
+
+@pytest.mark.parametrize("chosen, spin", [(None, "0"), ("ACTIVE", None)])
+def test_the_kernels_threads_wait_asleep_unless_the_user_chose(tmp_path, chosen, spin):
+    """A command's OpenMP threads (numba's omp layer, GNU libgomp) do not spin between parallel
+    loops (GOMP_SPINCOUNT 0, as libgomp reports it when it starts), where they would take the
+    cores from the figure helper; a user's own OMP_WAIT_POLICY is left as it is."""
+    env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
+    env.update(PYTHONPATH=str(ROOT), MPLBACKEND="Agg", NUMBA_THREADING_LAYER="omp",
+               OMP_DISPLAY_ENV="VERBOSE", ABACUS_CACHE_DIR=str(tmp_path / "cache"))
+    if chosen:
+        env["OMP_WAIT_POLICY"] = chosen
+    run = subprocess.run([sys.executable, "-m", "acoustics", "simulate", "two_targets", "--pings", "1",
+                          "-o", str(tmp_path / "s.nc")], env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    shown = dict(line.strip().split(" = ", 1) for line in run.stderr.splitlines()
+                 if line.strip().startswith(("GOMP_SPINCOUNT", "OMP_WAIT_POLICY")))
+    assert "GOMP_SPINCOUNT" in shown, "libgomp did not start: " + run.stderr[-500:]
+    if spin is not None:
+        assert shown["GOMP_SPINCOUNT"] == f"'{spin}'"
+    else:      # ACTIVE: libgomp spins far longer than its default 300 000 turns
+        assert int(shown["GOMP_SPINCOUNT"].strip("'")) > 300_000
+        assert shown["OMP_WAIT_POLICY"] == "'ACTIVE'"

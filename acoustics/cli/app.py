@@ -148,6 +148,18 @@ def _signal_cause(exc):
     return None
 
 
+def _threads_that_sleep():
+    """OpenMP threads that wait asleep, unless the user chose (``OMP_WAIT_POLICY``).
+
+    The compiled kernels' threads (numba's OpenMP layer, GNU libgomp) otherwise spin for
+    ≈ 300 000 turns after each parallel loop, on cores the figure helper and the FFT workers
+    want: measured on `abacus run default` (2 cores, 5 interleaved pairs) 6.9 → 5.9 CPU-s and
+    4.34 → 3.76 s with plots, 2.85 → 2.81 s without. Set before libgomp loads (it reads the
+    policy once); inherited by the command's helper processes and local workers."""
+    import os
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+
 def main(argv=None) -> int:
     """Run one ``abacus`` command; every error a user can cause ends as one line on stderr and
     a documented exit status, never a traceback.
@@ -166,6 +178,7 @@ def _command(argv) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)   # --help and --version end here, before any heavy import
     _install_signal_handlers()
+    _threads_that_sleep()
     try:
         def loaded(*errors):
             # an error class whose module was never imported cannot have been raised: the
