@@ -197,6 +197,7 @@ def _warm_up():
 
 def _serve(read_fd: int, write_fd: int):
     import collections
+    import pickle
     import queue
     import signal
     import threading
@@ -212,10 +213,12 @@ def _serve(read_fd: int, write_fd: int):
 
     def read():
         # jobs are taken off the pipe as they come, so the command never waits on a full pipe
-        # while a figure is being drawn
+        # while a figure is being drawn; as bytes: unpickling imports numpy, which must not
+        # happen here while the main thread imports matplotlib (two threads importing numpy
+        # at once can find it half-initialised: ImportError)
         while True:
             try:
-                jobs.put(recv.recv())
+                jobs.put(recv.recv_bytes())
             except (EOFError, OSError):
                 jobs.put(None)
                 return
@@ -236,7 +239,7 @@ def _serve(read_fd: int, write_fd: int):
                 # and tearing matplotlib's interpreter down would only keep the command waiting
                 _reap(copies, wait=True)
                 os._exit(0)
-            waiting.extend(batch)
+            waiting.extend(pickle.loads(batch))
         _reap(copies, wait=False)
         ticket, job, data, outdir = waiting.popleft()
         if (waiting or not jobs.empty()) and len(copies) < most:
