@@ -9,6 +9,7 @@ import functools
 from pathlib import Path
 
 import numpy as np
+
 from .atomic import staged
 
 __all__ = ["fan_beam", "plot_fan", "plot_range_profiles", "plot_phase_map", "save", "fixed_layout",
@@ -81,7 +82,7 @@ def fan_beam(magnitude, range_m, beam_angle_rad, *, pixel_m: float | None = None
 def _bilinear(values, i, j):
     """``values`` (n0, n1) at fractional indices ``i``, ``j`` (any shape, each within [0, n - 1]
     of its axis) by bilinear interpolation: ``scipy.ndimage.map_coordinates`` at ``order=1``
-    there, written out so that the figure helper never imports scipy (≈ 0.3 s of its start),
+    there, written out so that the figure helper never imports scipy (≈ 0.25 s of its start),
     as fast (four flat gathers, updated in place)."""
     n0, n1 = values.shape
     i0 = np.minimum(i.astype(np.intp), max(n0 - 2, 0))
@@ -383,6 +384,19 @@ def draw_detection_figures(ds: list, outdir: Path) -> list[Path]:
     legends and counting volume are made once, and each further ping only changes the data
     (fan image, markers, titles, limits). Same pixels as a figure per ping, for ≈ 60 % of the
     work (measured on the default scene's three pings: 1.28 → 0.74 CPU-s).
+
+    Parameters
+    ----------
+    ds : list of dict
+        Entries of ``count_figure_data(...)["detections"]`` (arrays as documented there:
+        ``magnitude`` (n_range, n_beams), ``position_m`` (n_det, 3) in m, ...).
+    outdir : path
+        Folder to write into (made if missing); each PNG is written atomically.
+
+    Returns
+    -------
+    list of Path
+        One file per entry of ``ds``, in order.
     """
     import matplotlib
     matplotlib.use("Agg")

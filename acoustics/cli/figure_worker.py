@@ -13,8 +13,10 @@ ends sooner than drawing only in its gaps and leaving a serial tail (measured: a
 or a second helper, made the run no faster). When figures queue up (the counts' figures, sent
 together — one message, :meth:`FigureWorker.submit_together` — once the numbers exist and drawn
 while the command only writes and waits) the helper forks copies of itself, matplotlib already
-imported and warm, to draw them side by side, one per spare core. The helper never outlives the command: it ignores SIGINT (the command handles
-Ctrl-C and ends it), is killed with the command (``PR_SET_PDEATHSIG`` on Linux, as are its
+imported and warm, to draw them side by side, one per spare core. Its reading thread only
+takes the jobs' bytes off the pipe; the main thread unpickles them, after its own imports.
+The helper never outlives the command: it ignores SIGINT (the command handles Ctrl-C and ends
+it), is killed with the command (``PR_SET_PDEATHSIG`` on Linux, as are its
 copies with it) and by :func:`stop_all`, which the CLI's exit path calls before it removes the
 temporaries the helper may be writing into; it leads its own process group, so that one signal
 ends it and its copies together. Answers are single writes of at most ``PIPE_BUF`` bytes
