@@ -80,10 +80,12 @@ def fan_beam(magnitude, range_m, beam_angle_rad, *, pixel_m: float | None = None
 
 
 def _bilinear(values, i, j):
-    """``values`` (n0, n1) at fractional indices ``i``, ``j`` (any shape, each within [0, n - 1]
-    of its axis) by bilinear interpolation: ``scipy.ndimage.map_coordinates`` at ``order=1``
+    """``values`` (n0, n1), n0, n1 ≥ 1, at fractional indices ``i``, ``j`` (any shape, each
+    within [0, n - 1] of its axis) by bilinear interpolation: ``scipy.ndimage.map_coordinates`` at ``order=1``
     there, written out so that the figure helper never imports scipy (≈ 0.25 s of its start),
     as fast (four flat gathers, updated in place)."""
+    values = np.asarray(values, float)
+    i, j = np.asarray(i, float), np.asarray(j, float)
     n0, n1 = values.shape
     i0 = np.minimum(i.astype(np.intp), max(n0 - 2, 0))
     j0 = np.minimum(j.astype(np.intp), max(n1 - 2, 0))
@@ -126,7 +128,7 @@ def plot_fan(ax, magnitude, range_m, beam_angle_rad, *, dynamic_range_db=40.0, t
     a quarter of a range sample) and drawn as one raster (``imshow``): a figure costs what it
     shows, not one polygon per range sample.
     """
-    db, extent = _fan_raster(ax, magnitude, range_m, beam_angle_rad)
+    db, extent, _ = _fan_raster(ax, magnitude, range_m, beam_angle_rad)
     m = ax.imshow(db, origin="lower", extent=extent, cmap="viridis", vmin=-dynamic_range_db,
                   vmax=0, interpolation="nearest", aspect="equal")
     ax.set_facecolor("white")
@@ -140,20 +142,30 @@ def plot_fan(ax, magnitude, range_m, beam_angle_rad, *, dynamic_range_db=40.0, t
     return m
 
 
-def _fan_raster(ax, magnitude, range_m, beam_angle_rad):
-    """The fan image of ``ax`` in dB re its maximum (masked outside the fan) and its extent."""
+def _fan_raster(ax, magnitude, range_m, beam_angle_rad, pixel_m=None):
+    """The fan image for ``ax`` in dB re its maximum (masked outside the fan), its extent and
+    its pixel size (m): as fine as the axes' pixels, or ``pixel_m`` (an image already drawn
+    keeps its grid: a colour bar and an equal aspect shrink the axes after the first)."""
+    r = np.asarray(range_m, float)
+    th = np.asarray(beam_angle_rad, float)
+    pixel = pixel_m or _fan_pixel_m(ax, r, th)
+    x, z, img, inside = fan_beam(magnitude, r, th, pixel_m=pixel, with_mask=True)
+    ref = max(float(np.max(magnitude)), 1e-300)
+    half = pixel / 2
+    return (np.ma.masked_where(~inside, _db(img, ref)),
+            (x[0] - half, x[-1] + half, z[0] - half, z[-1] + half), pixel)
+
+
+def _fan_pixel_m(ax, range_m, beam_angle_rad) -> float:
+    """Pixel size (m) of a fan image as fine as ``ax``'s pixels, never finer than a quarter of
+    a range sample."""
     r = np.asarray(range_m, float)
     th = np.asarray(beam_angle_rad, float)
     x_max = r[-1] * np.sin(np.abs(th).max())
     z0 = r[0] * np.cos(np.abs(th).max())
     extent = max(2 * x_max, r[-1] - z0)
     dr = float(np.median(np.diff(r))) if r.size > 1 else 0.01
-    pixel = max(extent / _axes_pixels(ax), dr / 4, 1e-4)
-    x, z, img, inside = fan_beam(magnitude, r, th, pixel_m=pixel, with_mask=True)
-    ref = max(float(np.max(magnitude)), 1e-300)
-    half = pixel / 2
-    return (np.ma.masked_where(~inside, _db(img, ref)),
-            (x[0] - half, x[-1] + half, z[0] - half, z[-1] + half))
+    return max(extent / _axes_pixels(ax), dr / 4, 1e-4)
 
 
 def _mark_detections(ax, x_m, z_m):
@@ -432,6 +444,8 @@ class _DetectionFigure:
         fixed_layout(fig, left=0.7, right=0.2, wspace=0.3)
         self.figure, self.axes, self._d = fig, axes, d
         inside = d["in_volume"]
+        # the fan's grid, as plot_fan makes it: from the axes' size before its colour bar
+        self._pixel_m = _fan_pixel_m(axes[0], d["range_m"], d["beam_angle_rad"])
         self._image = plot_fan(axes[0], d["magnitude"], d["range_m"], d["beam_angle_rad"],
                                title=self._title(d), detections=(d["fan_x_m"], d["fan_z_m"]))
         self._marks = axes[0].lines[0] if axes[0].lines else None
@@ -474,7 +488,8 @@ class _DetectionFigure:
     def show(self, d: dict):
         """Show ping ``d`` (one that :meth:`fits`) instead of the one shown."""
         ax = self.axes[0]
-        self._image.set_data(_fan_raster(ax, d["magnitude"], d["range_m"], d["beam_angle_rad"])[0])
+        self._image.set_data(_fan_raster(ax, d["magnitude"], d["range_m"], d["beam_angle_rad"],
+                                         pixel_m=self._pixel_m)[0])
         ax.set_title(self._title(d))
         if len(d["fan_x_m"]) and self._marks is not None:
             self._marks.set_data(d["fan_x_m"], d["fan_z_m"])

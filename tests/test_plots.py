@@ -78,16 +78,19 @@ def test_counts_are_plotted_against_whole_pings(n_pings):
     plt.close(fig)
 
 
-def test_one_detection_figure_redrawn_per_ping_gives_each_ping_its_own_pixels(tmp_path):
+@pytest.mark.parametrize("scene", ["default", "point_target"])
+def test_one_detection_figure_redrawn_per_ping_gives_each_ping_its_own_pixels(tmp_path, scene):
     """detections_ping<k>.png from one figure whose data change from ping to ping are the
     pixels of a figure made for each ping alone, through pings with and without detections
-    (markers and legend removed, then made again) and changing limits."""
+    (markers and legend removed, then made again) and changing limits; for a fan taller than
+    wide (default) and one wider than tall (point_target: the colour bar and the equal aspect
+    shrink the axes along the fan's larger side after the first ping's grid is chosen)."""
     from PIL import Image
 
     import acoustics
     import processing
     from processing.plots import count_figure_data, draw_detection_figures
-    tree = processing.count(acoustics.simulate(acoustics.load_scene("default"), pings=range(3)))
+    tree = processing.count(acoustics.simulate(acoustics.load_scene(scene), pings=range(3)))
     d0, d1, d2 = count_figure_data(tree, pings=range(3))["detections"]
     none = dict(d1, ping_index=7, fan_x_m=d1["fan_x_m"][:0], fan_z_m=d1["fan_z_m"][:0],
                 position_m=d1["position_m"][:0], in_volume=d1["in_volume"][:0])

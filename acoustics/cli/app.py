@@ -154,8 +154,10 @@ def _threads_that_sleep():
     The compiled kernels' threads (numba's OpenMP layer, GNU libgomp) otherwise spin for
     ≈ 300 000 turns after each parallel loop, on cores the figure helper and the FFT workers
     want: measured on `abacus run default` (2 cores, 5 interleaved pairs) 6.9 → 5.9 CPU-s and
-    4.34 → 3.76 s with plots, 2.85 → 2.81 s without. Set before libgomp loads (it reads the
-    policy once); inherited by the command's helper processes and local workers."""
+    4.34 → 3.76 s with plots, 2.85 → 2.81 s without. Set for every command run from the
+    command line (not for :func:`main` called with ``argv`` inside another program), before
+    libgomp loads (it reads the policy once); inherited by the command's helper processes and
+    local workers."""
     import os
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
@@ -166,6 +168,8 @@ def main(argv=None) -> int:
 
     ``argv`` None: the process' own command line (``abacus ...``, ``python -m acoustics``), which
     ends with the command."""
+    if argv is None:     # the process is the command's: its environment is ours to set
+        _threads_that_sleep()
     code = _command(argv)
     if argv is None:
         # the process ends here, its outputs closed and in place: tearing down its ≈ 200 000
@@ -178,15 +182,15 @@ def _command(argv) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)   # --help and --version end here, before any heavy import
     _install_signal_handlers()
-    _threads_that_sleep()
     try:
         def loaded(*errors):
             # an error class whose module was never imported cannot have been raised: the
             # classes are looked up when an error arrives, so that no command waits for
             # their modules before it starts (xarray, pydantic: ≈ 0.5 s, which `abacus run`
             # spends with its figure helper already importing matplotlib beside it)
-            return tuple(getattr(sys.modules[module], name) for module, name in errors
-                         if module in sys.modules)
+            # (a module still being imported by another thread may lack its class yet)
+            found = (getattr(sys.modules.get(module), name, None) for module, name in errors)
+            return tuple(cls for cls in found if cls is not None)
 
         def user_errors():
             return loaded(("processing.config", "ConfigError"), ("processing.dataset", "DatasetError"),

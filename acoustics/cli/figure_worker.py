@@ -29,7 +29,7 @@ import os
 import subprocess
 import sys
 
-__all__ = ["FigureWorker", "FigureError", "stop_all", "JOBS"]
+__all__ = ["FigureWorker", "FigureError", "stop_all", "spare_drawers", "JOBS"]
 
 #: what a helper can be asked to draw: function(data, outdir) -> the module that defines it
 JOBS = {"draw_image_figures": "processing.plots", "draw_detection_figure": "processing.plots",
@@ -106,6 +106,8 @@ class FigureWorker:
         core), where jobs sent one by one could find the second still on its way and be drawn
         one after the other. Returns their tickets, in order."""
         jobs = list(jobs)
+        if not jobs:
+            return []
         for job, _, _ in jobs:
             if job not in JOBS:
                 raise ValueError(f"unknown figure job {job!r}; accepted: {', '.join(JOBS)}")
@@ -231,7 +233,7 @@ def _serve(read_fd: int, write_fd: int):
     import processing.plots  # noqa: F401  (the figures of every run: loaded before they are asked for)
     _warm_up()
     copies: set = set()      # pids of the forked copies still drawing
-    most = _spare_drawers()
+    most = spare_drawers()
     waiting = collections.deque()   # jobs of the batches taken off the queue, not yet drawn
     while True:
         if not waiting:
@@ -242,6 +244,8 @@ def _serve(read_fd: int, write_fd: int):
                 _reap(copies, wait=True)
                 os._exit(0)
             waiting.extend(pickle.loads(batch))
+            if not waiting:
+                continue
         _reap(copies, wait=False)
         ticket, job, data, outdir = waiting.popleft()
         if (waiting or not jobs.empty()) and len(copies) < most:
@@ -263,7 +267,7 @@ def _serve(read_fd: int, write_fd: int):
         _answer(send, _draw(job, ticket, data, outdir))
 
 
-def _spare_drawers() -> int:
+def spare_drawers() -> int:
     """Forked copies that may draw at once: the cores beyond this helper's (at most 3)."""
     try:
         n = len(os.sched_getaffinity(0))
