@@ -286,6 +286,34 @@ def test_a_cold_run_has_its_beam_figures_drawn_by_the_helper_and_cached(tmp_path
         assert a.shape == b.shape and np.array_equal(a, b), name
 
 
+def test_a_command_line_sets_quiet_threads_before_numpy_loads_and_keeps_the_users(tmp_path):
+    """`abacus ...` (main() with the process' own command line) sets OMP_WAIT_POLICY=PASSIVE
+    and OPENBLAS_NUM_THREADS=1 before numpy (and OpenBLAS, which reads it once) is imported,
+    unless the user set them; main(argv) inside another program leaves the environment alone."""
+    code = ("import json, os, sys\n"
+            "import acoustics.cli.app as app\n"
+            "seen = {}\n"
+            "def command(argv):\n"
+            "    seen.update(numpy='numpy' in sys.modules, omp=os.environ.get('OMP_WAIT_POLICY'),\n"
+            "                blas=os.environ.get('OPENBLAS_NUM_THREADS'))\n"
+            "    return 0\n"
+            "app._command = command\n"
+            "app._exit_now = lambda code, *a: None\n"
+            "app.main(None if sys.argv[1] == 'cli' else ['--version'])\n"
+            "print(json.dumps(seen))")
+    base = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "OPENBLAS_NUM_THREADS")}
+
+    def seen(mode, **env):
+        out = subprocess.run([sys.executable, "-c", code, mode], env=dict(base, PYTHONPATH=str(ROOT), **env),
+                             capture_output=True, text=True, timeout=120)
+        assert out.returncode == 0, out.stderr[-2000:]
+        return json.loads(out.stdout.strip().splitlines()[-1])
+    assert seen("cli") == {"numpy": False, "omp": "PASSIVE", "blas": "1"}
+    assert seen("cli", OMP_WAIT_POLICY="ACTIVE", OPENBLAS_NUM_THREADS="4") == \
+        {"numpy": False, "omp": "ACTIVE", "blas": "4"}
+    assert seen("embedded") == {"numpy": False, "omp": None, "blas": None}
+
+
 @pytest.mark.parametrize("chosen, spin", [(None, "0"), ("ACTIVE", None)])
 def test_the_kernels_threads_wait_asleep_unless_the_user_chose(tmp_path, chosen, spin):
     """A command's OpenMP threads (numba's omp layer, GNU libgomp) do not spin between parallel

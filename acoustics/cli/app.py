@@ -148,18 +148,25 @@ def _signal_cause(exc):
     return None
 
 
-def _threads_that_sleep():
-    """OpenMP threads that wait asleep, unless the user chose (``OMP_WAIT_POLICY``).
+def _quiet_threads():
+    """Helper threads that wait asleep and do not run for nothing, unless the user chose.
 
-    The compiled kernels' threads (numba's OpenMP layer, GNU libgomp) otherwise spin for
-    ≈ 300 000 turns after each parallel loop, on cores the figure helper and the FFT workers
-    want: measured on `abacus run default` (2 cores, 5 interleaved pairs) 6.9 → 5.9 CPU-s and
-    4.34 → 3.76 s with plots, 2.85 → 2.81 s without. Set for every command run from the
-    command line (not for :func:`main` called with ``argv`` inside another program), before
-    libgomp loads (it reads the policy once); inherited by the command's helper processes and
-    local workers."""
+    - ``OMP_WAIT_POLICY=PASSIVE``: the compiled kernels' threads (numba's OpenMP layer, GNU
+      libgomp) otherwise spin for ≈ 300 000 turns after each parallel loop, on cores the figure
+      helper and the FFT workers want. Measured on `abacus run default` (2 cores, 5
+      interleaved pairs): 6.9 → 5.9 CPU-s and 4.34 → 3.76 s with plots, 2.85 → 2.81 s without.
+    - ``OPENBLAS_NUM_THREADS=1``: abacus' matrix products are small (elements × directions);
+      OpenBLAS' second thread made none of them faster and spun beside them: the cold beam
+      table 2.37 s either way, 4.40 → 2.35 CPU-s; `abacus run default` 4.03 → 3.96 s and
+      6.27 → 5.95 CPU-s with plots, 3.24 → 3.07 s and 3.99 → 3.57 CPU-s without. Parallel work
+      is the processing chain's threads' and the kernels'.
+
+    Set for every command run from the command line (not for :func:`main` called with
+    ``argv`` inside another program), before numpy or libgomp load (each reads its setting
+    once); inherited by the command's helper processes and local workers."""
     import os
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
 def main(argv=None) -> int:
@@ -169,7 +176,7 @@ def main(argv=None) -> int:
     ``argv`` None: the process' own command line (``abacus ...``, ``python -m acoustics``), which
     ends with the command."""
     if argv is None:     # the process is the command's: its environment is ours to set
-        _threads_that_sleep()
+        _quiet_threads()
     code = _command(argv)
     if argv is None:
         # the process ends here, its outputs closed and in place: tearing down its ≈ 200 000
