@@ -157,9 +157,10 @@ def _quiet_threads():
       interleaved pairs): 6.9 → 5.9 CPU-s and 4.34 → 3.76 s with plots, 2.85 → 2.81 s without.
     - ``OPENBLAS_NUM_THREADS=1``: abacus' matrix products are small (elements × directions);
       OpenBLAS' second thread made none of them faster and spun beside them: the cold beam
-      table 2.37 s either way, 4.40 → 2.35 CPU-s; `abacus run default` 4.03 → 3.96 s and
-      6.27 → 5.95 CPU-s with plots, 3.24 → 3.07 s and 3.99 → 3.57 CPU-s without. Parallel work
-      is the processing chain's threads' and the kernels'.
+      table 2.37 s either way, 4.40 → 2.35 CPU-s (a cold run 11.6 → 9.2 CPU-s); a warm
+      `abacus run default` (2 cores, 6 interleaved pairs) 5.94 → 5.70 CPU-s with plots,
+      3.48 → 3.23 without, its wall time unchanged within the noise. Parallel work is the
+      processing chain's threads' and the kernels'.
 
     Set for every command run from the command line (not for :func:`main` called with
     ``argv`` inside another program), before numpy or libgomp load (each reads its setting
