@@ -95,3 +95,26 @@ def test_an_interrupt_swallowed_by_a_library_still_ends_as_an_interrupt(tmp_path
            "b.command = boom")
     r = abacus("beams", "--json", cwd=tmp_path, pre=pre)
     assert r.returncode == 130 and r.stderr.strip() == "interrupted"
+
+
+def test_an_interrupt_landing_in_a_finaliser_ends_the_command_as_an_interrupt(tmp_path):
+    """A SIGINT whose KeyboardInterrupt is raised while a ``__del__`` runs is one Python can
+    only print ('Exception ignored in ...', a traceback) and drop, and the command would go on
+    (seen once in the reliability probes: SIGINT during an experiment): it still ends the
+    command at once, 130 'interrupted', with no traceback."""
+    pre = ("import acoustics.cli.beams as b\n"
+           "import os, signal, threading, time\n"
+           "class Finaliser:\n"
+           "    def __del__(self):\n"
+           "        time.sleep(2)              # the signal lands here\n"
+           "def boom(args):\n"
+           "    f = Finaliser()\n"
+           "    threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()\n"
+           "    del f\n"
+           "    print('went on')\n"
+           "    time.sleep(2)\n"
+           "    return 0\n"
+           "b.command = boom")
+    r = abacus("beams", "--json", cwd=tmp_path, pre=pre)
+    assert r.returncode == 130 and r.stderr.strip() == "interrupted", r.stderr
+    assert "went on" not in r.stdout
