@@ -308,6 +308,7 @@ def _child(cmd, *, cwd, env=None, tree=False):
     off. Not ``wait4``'s ru_maxrss: a child started by fork/vfork + exec carries the high-water
     mark of the process that started it, here this benchmark's.
     """
+    import resource
     import subprocess
     import threading
     import time
@@ -322,8 +323,6 @@ def _child(cmd, *, cwd, env=None, tree=False):
         except OSError:
             pass
         return 0.0
-
-    import resource
 
     def children_cpu_s():
         r = resource.getrusage(resource.RUSAGE_CHILDREN)

@@ -81,9 +81,9 @@ def fan_beam(magnitude, range_m, beam_angle_rad, *, pixel_m: float | None = None
 
 def _bilinear(values, i, j):
     """``values`` (n0, n1), n0, n1 ≥ 1, at fractional indices ``i``, ``j`` (any shape, each
-    within [0, n - 1] of its axis) by bilinear interpolation: ``scipy.ndimage.map_coordinates`` at ``order=1``
-    there, written out so that the figure helper never imports scipy (≈ 0.25 s of its start),
-    as fast (four flat gathers, updated in place)."""
+    within [0, n - 1] of its axis) by bilinear interpolation: ``scipy.ndimage.map_coordinates``
+    at ``order=1`` there, written out so that the figure helper never imports scipy (≈ 0.25 s
+    of its start), as fast (four flat gathers, updated in place)."""
     values = np.asarray(values, float)
     i, j = np.asarray(i, float), np.asarray(j, float)
     n0, n1 = values.shape
@@ -121,14 +121,14 @@ def _axes_pixels(ax) -> int:
 
 
 def plot_fan(ax, magnitude, range_m, beam_angle_rad, *, dynamic_range_db=40.0, title="",
-             detections=None):
+             detections=None, pixel_m=None):
     """Fan-beam image in dB re its maximum, with a colour bar; optional detections (x, z).
 
     The fan is resampled once onto a regular grid as fine as the axes' pixels (never finer than
     a quarter of a range sample) and drawn as one raster (``imshow``): a figure costs what it
-    shows, not one polygon per range sample.
+    shows, not one polygon per range sample. ``pixel_m`` fixes that grid's pixel size (m).
     """
-    db, extent, _ = _fan_raster(ax, magnitude, range_m, beam_angle_rad)
+    db, extent = _fan_raster(ax, magnitude, range_m, beam_angle_rad, pixel_m)
     m = ax.imshow(db, origin="lower", extent=extent, cmap="viridis", vmin=-dynamic_range_db,
                   vmax=0, interpolation="nearest", aspect="equal")
     ax.set_facecolor("white")
@@ -143,9 +143,8 @@ def plot_fan(ax, magnitude, range_m, beam_angle_rad, *, dynamic_range_db=40.0, t
 
 
 def _fan_raster(ax, magnitude, range_m, beam_angle_rad, pixel_m=None):
-    """The fan image for ``ax`` in dB re its maximum (masked outside the fan), its extent and
-    its pixel size (m): as fine as the axes' pixels, or ``pixel_m`` (an image already drawn
-    keeps its grid: a colour bar and an equal aspect shrink the axes after the first)."""
+    """The fan image for ``ax`` in dB re its maximum (masked outside the fan) and its extent,
+    on pixels of ``pixel_m`` (default :func:`_fan_pixel_m`)."""
     r = np.asarray(range_m, float)
     th = np.asarray(beam_angle_rad, float)
     pixel = pixel_m or _fan_pixel_m(ax, r, th)
@@ -153,7 +152,7 @@ def _fan_raster(ax, magnitude, range_m, beam_angle_rad, pixel_m=None):
     ref = max(float(np.max(magnitude)), 1e-300)
     half = pixel / 2
     return (np.ma.masked_where(~inside, _db(img, ref)),
-            (x[0] - half, x[-1] + half, z[0] - half, z[-1] + half), pixel)
+            (x[0] - half, x[-1] + half, z[0] - half, z[-1] + half))
 
 
 def _fan_pixel_m(ax, range_m, beam_angle_rad) -> float:
@@ -444,10 +443,12 @@ class _DetectionFigure:
         fixed_layout(fig, left=0.7, right=0.2, wspace=0.3)
         self.figure, self.axes, self._d = fig, axes, d
         inside = d["in_volume"]
-        # the fan's grid, as plot_fan makes it: from the axes' size before its colour bar
+        # the fan's grid, from the axes' size before the colour bar and the equal aspect shrink
+        # them, kept for every later ping
         self._pixel_m = _fan_pixel_m(axes[0], d["range_m"], d["beam_angle_rad"])
         self._image = plot_fan(axes[0], d["magnitude"], d["range_m"], d["beam_angle_rad"],
-                               title=self._title(d), detections=(d["fan_x_m"], d["fan_z_m"]))
+                               title=self._title(d), detections=(d["fan_x_m"], d["fan_z_m"]),
+                               pixel_m=self._pixel_m)
         self._marks = axes[0].lines[0] if axes[0].lines else None
         pos, tp = d["position_m"], d["truth_m"]
         self._lines = []
@@ -489,7 +490,7 @@ class _DetectionFigure:
         """Show ping ``d`` (one that :meth:`fits`) instead of the one shown."""
         ax = self.axes[0]
         self._image.set_data(_fan_raster(ax, d["magnitude"], d["range_m"], d["beam_angle_rad"],
-                                         pixel_m=self._pixel_m)[0])
+                                         self._pixel_m)[0])
         ax.set_title(self._title(d))
         if len(d["fan_x_m"]) and self._marks is not None:
             self._marks.set_data(d["fan_x_m"], d["fan_z_m"])

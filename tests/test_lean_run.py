@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import psutil
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -137,7 +138,6 @@ def test_queued_figures_are_drawn_by_forked_copies_that_die_with_the_helper(tmp_
     import processing
     from acoustics.cli.figure_worker import FigureWorker
     from processing.plots import count_figure_data, draw_detection_figure
-    psutil = pytest.importorskip("psutil")
     tree = processing.count(acoustics.simulate(acoustics.load_scene("default"), pings=range(3)))
     data = count_figure_data(tree, pings=range(3))["detections"]
     seen, stop = set(), threading.Event()
@@ -177,10 +177,10 @@ def test_queued_figures_are_drawn_by_forked_copies_that_die_with_the_helper(tmp_
     assert copies, "no forked copy began"
     helper.kill()
     gone, alive = psutil.wait_procs(copies, timeout=5)
-    assert not [p for p in alive if _running(p, psutil)]     # dead, if perhaps not yet reaped
+    assert not [p for p in alive if _running(p)]     # dead, if perhaps not yet reaped
 
 
-def _running(proc, psutil) -> bool:
+def _running(proc) -> bool:
     try:
         return proc.status() != psutil.STATUS_ZOMBIE
     except psutil.Error:
@@ -228,7 +228,6 @@ def test_the_figure_helper_dies_with_a_killed_run(tmp_path):
     import signal
     import time
 
-    psutil = pytest.importorskip("psutil")
     env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg",
                ABACUS_CACHE_DIR=str(tmp_path / "cache"))
     proc = subprocess.Popen([sys.executable, "-m", "acoustics", "run", "default", "-o", "out",

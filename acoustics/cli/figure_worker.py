@@ -5,8 +5,8 @@ the machine idle (start-up, single-threaded stretches, writing the dataset). A c
 draws figures starts :class:`FigureWorker` first: the helper imports matplotlib and warms its
 fonts while the command imports and simulates, then draws the jobs it is sent — figures of the
 data of :mod:`processing.plots` and :mod:`acoustics.sonar.plots` (plain arrays, pickled over
-a pipe) — in order, into the
-folders it is told (the command's staged temporaries), and answers each with the files written.
+a pipe) — in order, into the folders it is told (the command's staged temporaries), and answers
+each with the files written.
 
 It runs at the command's priority: on two cores, drawing beside the physics (and slowing it)
 ends sooner than drawing only in its gaps and leaving a serial tail (measured: a lower priority,
@@ -16,8 +16,8 @@ while the command only writes and waits) the helper forks copies of itself, matp
 imported and warm, to draw them side by side, one per spare core. Its reading thread only
 takes the jobs' bytes off the pipe; the main thread unpickles them, after its own imports.
 The helper never outlives the command: it ignores SIGINT (the command handles Ctrl-C and ends
-it), is killed with the command (``PR_SET_PDEATHSIG`` on Linux, as are its
-copies with it) and by :func:`stop_all`, which the CLI's exit path calls before it removes the
+it), is killed with the command (``PR_SET_PDEATHSIG`` on Linux, as are its copies with it) and
+by :func:`stop_all`, which the CLI's exit path calls before it removes the
 temporaries the helper may be writing into; it leads its own process group, so that one signal
 ends it and its copies together. Answers are single writes of at most ``PIPE_BUF`` bytes
 (file names, not paths), which the helper and its copies can share a pipe with.
@@ -316,6 +316,7 @@ def _answer(send, message):
         value = "…" + value[-(len(value) // 2):]
         payload = pickle.dumps((ticket, ok, value))
     send.send_bytes(payload)
+
 
 if __name__ == "__main__":
     _serve(int(sys.argv[1]), int(sys.argv[2]))

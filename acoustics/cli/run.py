@@ -149,6 +149,7 @@ class _RunFigures:
     def __init__(self, stack, helper, outdir: Path):
         self._stack, self._helper, self._outdir = stack, helper, outdir
         self._folders: dict = {}
+        self._beam_pngs = None       # the beam figures' PNGs, when the geometry cache has them
 
     def _submit(self, name: str, *jobs):
         """Send ``(job, data)`` pairs drawn into the scratch folder ``name``, together."""
@@ -194,7 +195,7 @@ class _RunFigures:
 
         from acoustics.cli.beams import store_beam_figures, write_beam_figures
         from processing.atomic import staged
-        if getattr(self, "_beam_pngs", None) is not None:
+        if self._beam_pngs is not None:
             with staged(self._outdir / "beams") as tmp:
                 write_beam_figures(self._beam_pngs, tmp)
         for name, (folder, tickets) in self._folders.items():

@@ -82,33 +82,34 @@ def _store(path: Path, value) -> None:
         pass
 
 
-def cached(name: str, key):
+def cached(name: str, key, *, disk: bool = True):
     """The value :func:`per_geometry` holds for (name, key), from memory or disk, or None when
     it would have to be computed (nothing is computed here)."""
     k = (name, key)
     if k in _CACHE:
         return _CACHE[k]
-    path = _file(name, key)
+    path = _file(name, key) if disk else None
     value = _load(path) if path is not None else None
     if value is not None:
-        _CACHE[k] = value
+        _remember(k, value)
     return value
+
+
+def _remember(k, value):
+    if len(_CACHE) >= _MAX_ENTRIES:
+        _CACHE.clear()
+    _CACHE[k] = value
 
 
 def per_geometry(name: str, key, compute, *, disk: bool = True):
     """``compute()`` once for (name, key): from memory, else from the disk cache, else computed
     (and stored in both). ``key`` must be hashable and have a stable ``repr`` (bytes, numbers,
     strings and tuples of them); the value a JSON-able dict or a tuple of arrays and floats."""
-    k = (name, key)
-    if k in _CACHE:
-        return _CACHE[k]
-    path = _file(name, key) if disk else None
-    value = _load(path) if path is not None else None
+    value = cached(name, key, disk=disk)
     if value is None:
         value = compute()
+        path = _file(name, key) if disk else None
         if path is not None:
             _store(path, value)
-    if len(_CACHE) >= _MAX_ENTRIES:
-        _CACHE.clear()
-    _CACHE[k] = value
+        _remember((name, key), value)
     return value
