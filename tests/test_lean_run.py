@@ -180,6 +180,20 @@ def test_queued_figures_are_drawn_by_forked_copies_that_die_with_the_helper(tmp_
     assert not [p for p in alive if _running(p)]     # dead, if perhaps not yet reaped
 
 
+@pytest.mark.parametrize("n, drawers", [(3, 2), (3, 4), (3, 1), (1, 2), (0, 2), (7, 3), (2, 5)])
+def test_the_run_splits_its_last_figures_evenly_over_the_drawers(n, drawers):
+    """Every figure once, in order, in at most ``drawers`` consecutive shares that differ by at
+    most one figure, the larger first (the forked copies take the first shares and start first)."""
+    from acoustics.cli.run import drawing_shares
+    shares = drawing_shares(n, drawers)
+    figures = list(range(n))
+    assert [i for s in shares for i in figures[s]] == figures
+    sizes = [len(figures[s]) for s in shares]
+    assert len(shares) <= max(1, drawers) and (n == 0 or min(sizes) >= 1)
+    assert max(sizes) - min(sizes) <= 1 and sizes == sorted(sizes, reverse=True)
+    assert len(shares) == max(1, min(n, drawers))     # no drawer idle while another has two
+
+
 def _running(proc) -> bool:
     try:
         return proc.status() != psutil.STATUS_ZOMBIE
