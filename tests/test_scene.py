@@ -228,6 +228,47 @@ def test_warns_on_grating_lobes_sampling_and_blind_zone(write_scene):
     assert any("targets.points[0]" in m and "blind zone" in m for m in w)
 
 
+_ONE_TARGET = ("name: t\ntargets:\n  points:\n    - {range_m: 19.5, azimuth_deg: 0, elevation_deg: 0}\n")
+
+
+@pytest.mark.parametrize("extra, warned", [
+    ("", True),                                                         # rayleigh, no noise
+    ("processing:\n  detect: {method: fixed, value: 3, value_units: noise_mean}\n", True),
+    ("noise: {enabled: true}\n", False),
+    ("processing:\n  detect: {method: fraction_of_peak, fraction: 0.2}\n", False),
+    ("processing:\n  detect: {method: fixed, value: 600}\n", False),   # counts: no noise needed
+    ("processing:\n  detect: {method: cfar}\n", False),
+])
+def test_warns_when_a_noise_derived_threshold_has_no_noise_to_derive_from(write_scene, extra, warned):
+    """Without noise the images' 'noise' cells are the targets' sidelobes and the numerical
+    floor: a threshold derived from them counts the sidelobes (the warning names the key)."""
+    w = _warnings(write_scene(_ONE_TARGET + extra))
+    hits = [m for m in w if "processing.detect.method" in m and "no noise" in m]
+    assert bool(hits) == warned, w
+
+
+def test_a_noise_free_point_target_is_counted_once():
+    """The point-target scene (one unit target, no noise, thesis Fig. 6.1): its sidelobes are
+    ≈ 0.05 of the peak in range and 0.02 in azimuth (thesis §6.1.1), below its threshold of 0.2
+    of the peak, so exactly the target is detected — where a Rayleigh fit to the sidelobes
+    counted 53."""
+    import acoustics
+    import processing
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SceneWarning)
+        scene = load_scene(SCENES / "point_target.yaml")
+    summary = processing.count_summary(processing.count(acoustics.simulate(scene)))["summary"]
+    assert summary["true_in_volume"]["mean"] == 1.0
+    assert summary["count_before"]["mean"] == summary["count_after"]["mean"] == 1.0, summary
+    assert summary["total_false_alarms_after"] == 0
+
+
+def test_no_builtin_scene_warns_of_a_threshold_without_noise():
+    for path in sorted(SCENES.glob("*.yaml")):
+        hits = [m for m in _warnings(path) if "processing.detect.method" in m]
+        assert not hits, (path.name, hits)
+
+
 def test_warns_on_grating_lobes_of_an_explicit_array(write_scene):
     """A user's own array with a pitch over λ/2 gets the warning (it may not be intended)."""
     w = _warnings(write_scene(EXPLICIT.replace("{width}", "0.012")))
