@@ -475,7 +475,8 @@ class _DetectionFigure:
 
     @staticmethod
     def _title(d) -> str:
-        return f"ping {d['ping_index']}: {d['in_volume'].size} detections"
+        n = d["in_volume"].size
+        return f"ping {d['ping_index']}: {n} detection{'' if n == 1 else 's'}"
 
     def fits(self, d: dict) -> bool:
         """Whether ``d`` has this figure's image grid, counting volume and truth (or none)."""
