@@ -20,8 +20,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
-import shutil
 import tempfile
 import time
 from dataclasses import dataclass
@@ -29,6 +27,7 @@ from pathlib import Path
 
 from processing.atomic import write_bytes_atomic, write_text_atomic
 from processing.dataset import write_dataset
+from processing.resources import usable_cores
 from processing.results import assemble_results, load_part, save_part
 
 __all__ = ["Sweep", "parse_sweep", "ExperimentError", "run_experiment", "experiment_plan"]
@@ -376,14 +375,6 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
 #: imports and kernel loading in every worker and splits cores that the in-process run's
 #: multi-threaded kernels already use
 AUTO_IN_PROCESS_MAX_CORES = 2
-
-
-def usable_cores() -> int:
-    """Cores this process may run on (its CPU affinity), at least 1."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not on Linux
-        return max(1, os.cpu_count() or 1)
 
 
 def plan_workers(workers: int | None, scheduler: str | None = None):

@@ -401,6 +401,8 @@ def end_to_end():
     import tempfile
     from pathlib import Path
 
+    from processing.resources import usable_cores
+
     # an installed abacus has its bytecode compiled (pip does it); a checkout on a machine with
     # PYTHONDONTWRITEBYTECODE (this one) would recompile every module on every start
     for pkg in ("acoustics", "processing"):
@@ -444,7 +446,7 @@ def end_to_end():
                 best["cold"] = (wall, rss)
         cold_wall, cold_rss = best["cold"]
         cpu = {tag: float(np.median(v)) for tag, v in cpus.items()}
-        cores = len(os.sched_getaffinity(0))
+        cores = usable_cores()
         (_, _, cold_tree, _, _), _ = run("cold-memory", cold=True, memory=True)
         # memory in runs of their own: the process tree's PSS is too dear to read in timed runs
         peak = {tag: run(f"mem-{tag}", *extra, memory=True)[0] for tag, extra in

@@ -16,7 +16,6 @@ bound turns out above the final threshold (noise far from stationary) is imaged 
 """
 from __future__ import annotations
 
-import os
 import warnings
 from dataclasses import dataclass, replace
 
@@ -27,6 +26,7 @@ from .detection import (DetectionWarning, Detections, Thresholds, candidates, de
                         fit_noise_cells, noise_cells, ping_thresholds, select, snr_db)
 from .imaging import form_images
 from .noise import NoiseEstimateError, RayleighFit, rayleigh_mean
+from .resources import usable_cores
 from .settings import ProcessingSettings
 
 __all__ = ["detect_record", "record_pings", "default_workers", "DEFAULT_CHUNK_PINGS"]
@@ -67,11 +67,7 @@ def _map(fn, items, workers: int):
 def default_workers() -> int:
     """Threads for the chain: the cores this process may use (at most 4: memory is one chunk's
     images per thread)."""
-    try:
-        n = len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not on Linux
-        n = os.cpu_count() or 1
-    return max(1, min(4, n))
+    return min(4, usable_cores())
 
 
 def _pools_image_noise(st) -> bool:

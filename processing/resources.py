@@ -19,7 +19,8 @@ import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["ResourceError", "Estimate", "memory_limit_bytes", "check_resources", "fmt_bytes"]
+__all__ = ["ResourceError", "Estimate", "memory_limit_bytes", "check_resources", "fmt_bytes",
+           "usable_cores"]
 
 GB = 1024 ** 3
 
@@ -64,6 +65,14 @@ class Estimate:
                           sorted(self.terms, key=lambda t: -t[1])[:4])
         return (f"≈ {fmt_bytes(self.memory_bytes)} of memory ({parts}) and "
                 f"{fmt_bytes(self.output_bytes)} written")
+
+
+def usable_cores() -> int:
+    """Cores this process may run on (its CPU affinity), at least 1."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
 
 
 def _physical_memory() -> float:

@@ -269,11 +269,8 @@ def _serve(read_fd: int, write_fd: int):
 
 def spare_drawers() -> int:
     """Forked copies that may draw at once: the cores beyond this helper's (at most 3)."""
-    try:
-        n = len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not on Linux
-        n = os.cpu_count() or 1
-    return max(0, min(3, n - 1))
+    from processing.resources import usable_cores
+    return min(3, usable_cores() - 1)
 
 
 def _reap(copies: set, *, wait: bool):
