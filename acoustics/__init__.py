@@ -1,4 +1,4 @@
-"""abacus.acoustics — the forward problem: a scene becomes per-element complex echoes.
+"""acoustics — the forward model (abacus' lower layer): a scene becomes per-element complex echoes.
 
 The stages, one sub-package each (docs/architecture.md)::
 
@@ -8,8 +8,6 @@ The stages, one sub-package each (docs/architecture.md)::
     paths/       Embree ray casting: occlusion, multipath, reverberation, mesh targets
     synthesis/   arrivals -> per-element complex baseband samples, noise, ADC
     simulation/  the run: setup, one ping, the dataset it becomes
-    experiment   Monte Carlo over pings and sweeps (Dask)
-    cli/         the ``abacus`` command
 
 Public surface (docs/api.md; imported on first use, so ``import acoustics`` is cheap)::
 
@@ -34,7 +32,6 @@ _API = {
     "Scene": "acoustics.scene.schema", "SceneError": "acoustics.scene.errors",
     "SceneWarning": "acoustics.scene.errors",
     "simulate": "acoustics.simulation.run",
-    "run_experiment": "acoustics.experiment",
     "beamwidth": "acoustics.sonar.beams", "pattern_cut": "acoustics.sonar.beams",
     "peak_sidelobe_db": "acoustics.sonar.beams", "summarize_beam": "acoustics.sonar.beams",
     "array_pattern": "acoustics.sonar.directivity", "array_response": "acoustics.sonar.directivity",

@@ -155,7 +155,7 @@ def _record(text):
     from acoustics import SceneWarning
     from acoustics.scene import scene_from_text
     from acoustics.simulation.run import simulate
-    from processing.dataset import read_record
+    from processing.base.dataset import read_record
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
         return read_record(simulate(scene_from_text(text)))
@@ -164,7 +164,7 @@ def _record(text):
 @knob
 def beamformer():
     """Narrowband FFT and delay-and-sum vs wideband time-delay beamforming, by azimuth."""
-    from processing.imaging import form_images
+    from processing.imaging.images import form_images
     from processing.settings import ImageSettings
 
     az = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 6.9]
@@ -217,8 +217,8 @@ def calibration_grid():
     from acoustics.sonar import cache
     from acoustics.sonar.build import preset_sonar
     from acoustics.sonar.calibration import sonar_calibration, two_way_elevation_width
-    from processing.beamforming import SubarrayGeometry, fft_beam_angles
-    from processing.calibration import Calibration, beam_solid_angle_sr
+    from processing.imaging.beamforming import SubarrayGeometry, fft_beam_angles
+    from processing.backscatter.calibration import Calibration, beam_solid_angle_sr
 
     son = preset_sonar()
     tx, rx = son.transmitter, son.receiver.elements
@@ -292,8 +292,8 @@ def calibration_grid():
 @knob
 def interpolation():
     """Range interpolation factor 1/2/4/8 vs 16."""
-    from processing.imaging import form_images
-    from processing.peaks import refine_peaks
+    from processing.imaging.images import form_images
+    from processing.detection.peaks import refine_peaks
     from processing.settings import ImageSettings
 
     rng = np.random.default_rng(4)
@@ -446,7 +446,7 @@ def multipath_order():
     from acoustics import SceneWarning
     from acoustics.scene import scene_from_text
     from acoustics.simulation.run import simulate
-    from processing.dataset import read_record
+    from processing.base.dataset import read_record
 
     def run(order):
         with warnings.catch_warnings():

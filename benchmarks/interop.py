@@ -71,7 +71,7 @@ def main(argv=None) -> int:
         f"- backscatter_r/_i equal to abacus' samples, bit for bit: **{res['equal']}**\n\n"
         "Limits: echopype's calibration functions (`compute_Sv`) know Simrad, AZFP and AD2CP "
         "sonars only, so they do not apply to ABACUS; abacus computes Sv, MVBS and NASC itself "
-        "(`abacus sv`, processing/volume_backscatter.py). A dataset that abacus' processing has "
+        "(`abacus sv`, processing/backscatter/sv.py). A dataset that abacus' processing has "
         "written to (`/Processing/*` groups) holds groups echopype's convention table does not "
         "list; echopype's repr then fails on them (it looks every group up in that table): open the "
         "raw simulation, or read the processing groups with xarray.\n")

@@ -15,12 +15,12 @@ import warnings
 import numpy as np
 from _report import ROOT
 
-from processing.dataset import TRUTH_GROUP
+from processing.base.dataset import TRUTH_GROUP
 
 import acoustics
 import processing
 from acoustics import SceneWarning, load_scene
-from processing.plots import fan_beam, fixed_layout, save
+from abacus.figures.plots import fan_beam, fixed_layout, save
 
 FIGURES = ROOT / "docs" / "figures"
 
@@ -81,7 +81,7 @@ def _fans(images, pings, titles, path, *, truth=None, dynamic_range_db=50.0, det
 
 
 def _view(scene, name, ping):
-    from acoustics.view import render_scene
+    from abacus.view import render_scene
     render_scene(scene, FIGURES / f"scene_{name}.png", ping=ping, window_size=(1200, 850))
 
 

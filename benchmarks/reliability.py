@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-ABACUS = [sys.executable, "-m", "acoustics"]
+ABACUS = [sys.executable, "-m", "abacus"]
 SECRET = "root:x:0:0"          # a line of /etc/passwd: must never appear in a message
 
 #: a small, fast scene every probe starts from (1 ping, 1024 samples, two targets)
@@ -95,7 +95,7 @@ def _make_dataset(kind: str, path: Path):
         import numpy as np
         import xarray as xr
 
-        from processing.dataset import ELEMENT_GROUP
+        from processing.base.dataset import ELEMENT_GROUP
         good = CACHE / "good.nc"
         tree = xr.open_datatree(good).load()
         if kind == "truncated":
@@ -638,7 +638,7 @@ def run_probe(probe: Probe) -> Result:
 def _current_layout(path: Path) -> bool:
     import xarray as xr
 
-    from processing.dataset import ELEMENT_GROUP
+    from processing.base.dataset import ELEMENT_GROUP
     try:
         with xr.open_datatree(path) as t:
             t[ELEMENT_GROUP]
@@ -724,7 +724,7 @@ def report(results) -> str:
         "(its parts carry the experiment's identity, so even without a manifest) and refuses a folder of "
         "other files; `--restart` discards.",
         "- Everything is written to a hidden temporary next to its final name and renamed when complete "
-        "(`processing/atomic.py`); a killed process' temporaries are removed by the next write to the same "
+        "(`processing/base/atomic.py`); a killed process' temporaries are removed by the next write to the same "
         "name; `abacus run` writes its numbers first and its figures after, each as a whole folder.",
         "- Scene files: YAML without anchors or aliases, at most 1 MB and 32 levels deep, regular files only; "
         "mesh and grid files only inside the scene's folder (`ABACUS_ALLOW_OUTSIDE_FILES=1` lifts it), at "

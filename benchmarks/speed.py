@@ -119,8 +119,8 @@ def imaging():
 
     from acoustics import SceneWarning, load_scene
     from acoustics.simulation.run import simulate
-    from processing.dataset import read_record
-    from processing.imaging import form_images
+    from processing.base.dataset import read_record
+    from processing.imaging.images import form_images
     from processing.settings import ImageSettings
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
@@ -248,7 +248,7 @@ def experiment():
     import xarray as xr
 
     from acoustics import SceneWarning, load_scene
-    from acoustics.experiment import parse_sweep, run_experiment
+    from abacus.experiment import parse_sweep, run_experiment
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
         scene = load_scene(ROOT / "scenes" / "default.yaml")
@@ -401,13 +401,13 @@ def end_to_end():
     import tempfile
     from pathlib import Path
 
-    from processing.resources import usable_cores
+    from processing.base.resources import usable_cores
 
     # an installed abacus has its bytecode compiled (pip does it); a checkout on a machine with
     # PYTHONDONTWRITEBYTECODE (this one) would recompile every module on every start
     for pkg in ("acoustics", "processing"):
         compileall.compile_dir(ROOT / pkg, quiet=1)
-    exe = [sys.executable, "-m", "acoustics"]
+    exe = [sys.executable, "-m", "abacus"]
     work = Path(tempfile.mkdtemp(prefix="abacus-e2e-"))
     env = dict(os.environ, ABACUS_CACHE_DIR=str(work / "cache"), MPLBACKEND="Agg")
     try:
@@ -502,7 +502,7 @@ def end_to_end():
                                               "threshold=600:2000:50", "-o", str(out), *extra],
                                        cwd=work, env=env)
                 exp[tag] = min(exp[tag], wall)
-        from acoustics.experiment import plan_workers
+        from abacus.experiment import plan_workers
         auto = plan_workers(None)[0]
         exp_rows = [[tag + (f" = {auto} local workers" if auto and tag.startswith("default") else
                             " = in process" if tag.startswith("default") else ""),

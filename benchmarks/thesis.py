@@ -4,7 +4,7 @@ docs/thesis-results.md and its figures (docs/figures/thesis/).
     python benchmarks/thesis.py                  # every experiment (~10 min on 2 cores)
     python benchmarks/thesis.py --only threshold
 
-Each section runs `acoustics.experiment.run_experiment` on a scene of scenes/ (100 pings, the
+Each section runs `abacus.experiment.run_experiment` on a scene of scenes/ (100 pings, the
 thesis' settings), keeps the report's figures, and sets the numbers next to what the thesis reports.
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from _report import ROOT, Report, table
 
-from processing.noise import RAYLEIGH_MEAN_FACTOR
+from processing.detection.noise import RAYLEIGH_MEAN_FACTOR
 
 REPORT = Report(
     "The thesis' chapter 6, reproduced",
@@ -42,7 +42,7 @@ def _run(scene_name, *, sweep=None, pings=None, workers=2):
     import xarray as xr
 
     from acoustics import SceneWarning, load_scene
-    from acoustics.experiment import parse_sweep, run_experiment
+    from abacus.experiment import parse_sweep, run_experiment
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
         scene = load_scene(ROOT / "scenes" / scene_name)
@@ -140,7 +140,7 @@ def noise():
     import processing
     from acoustics import SceneWarning, load_scene
     from acoustics.simulation.run import simulate
-    from processing.noise import rayleigh_fit
+    from processing.detection.noise import rayleigh_fit
     ds, tmp = _run("noise.yaml", sweep="threshold=670,700,730")
     figs = _keep(tmp, "noise", ["noise_pdf", "counts", "sweep"])
     lab = list(ds["setting_label"].values)
@@ -224,7 +224,7 @@ def all_variables():
 
 @section
 def threshold():
-    from processing.report import derived_in_sweep_units, plateau
+    from abacus.report import derived_in_sweep_units, plateau
     ds, tmp = _run("default.yaml", sweep="threshold=600:2000:50")
     figs = _keep(tmp, "threshold", ["sweep"])
     lo, hi = plateau(ds)

@@ -39,7 +39,7 @@ def _runs():
 
 
 def _score(trees, settings):
-    from processing.tracks import track, track_summary
+    from processing.tracking.tracks import track, track_summary
     rows, t = [], 0.0
     for tree in trees:
         t0 = time.perf_counter()
@@ -59,8 +59,8 @@ def _totals(rows):
 def tracking_section() -> str:
     import processing
     from processing.settings import TrackSettings
-    from processing.track_plots import track_figures
-    from processing.tracks import track
+    from abacus.figures.tracks import track_figures
+    from processing.tracking.tracks import track
     scene, trees = _runs()
     base = processing.resolve_settings(trees[0], None)
 

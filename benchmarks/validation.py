@@ -16,8 +16,8 @@ import numpy as np
 from _report import ROOT, Report, table
 
 from acoustics.sonar import preset
-from processing.dataset import TRUTH_GROUP
-from processing.noise import RAYLEIGH_MEAN_FACTOR
+from processing.base.dataset import TRUTH_GROUP
+from processing.detection.noise import RAYLEIGH_MEAN_FACTOR
 
 REPORT = Report(
     "Validation",
@@ -154,8 +154,8 @@ def ghosts():
 
 @section
 def elevation_vs_snr():
-    from processing.interferometry import elevation_from_phase
-    from processing.peaks import refine_peaks
+    from processing.imaging.interferometry import elevation_from_phase
+    from processing.detection.peaks import refine_peaks
     base = _scene("two_targets.yaml")
     rows = []
     target = "targets:\n  points:\n    - {range_m: 20.0, azimuth_deg: 0.7, elevation_deg: 0.3}\n"
@@ -235,7 +235,7 @@ def location():
             f"Ten unit targets at 13.8–24.6 m (random azimuth ±4.5°, elevation ±0.4°), channel noise "
             f"σ = 12 counts, 100 pings: {len(er)} located detections with SNR {s.min():.0f}–{s.max():.0f} dB "
             "(image peak over image noise σ). Errors of the nearest detection to each target, "
-            "from the thesis' system of equations solved exactly (processing/locate.py):\n\n"
+            "from the thesis' system of equations solved exactly (processing/detection/locate.py):\n\n"
             + table(["component", "mean", "std", "median abs(e)", "90 %", "99 %", "max", "bound"], rows))
 
 
@@ -255,8 +255,8 @@ def scenarios():
                      f"{s['total_misses_after']} ({s['total_shared_cell_misses']} shared)",
                      str(s["total_false_alarms_after"])])
     tree = processing.image(simulate(_scene("noise_only.yaml"), pings=range(20)))
-    from processing.noise import rayleigh_fit
-    from processing.thresholds import rayleigh_threshold
+    from processing.detection.noise import rayleigh_fit
+    from processing.detection.thresholds import rayleigh_threshold
     im = processing.images_of(tree)
     mags = np.abs(im.image[:, 0])
     fit = rayleigh_fit(mags, estimator="ml", decimate=(Ellipsis, slice(None, None, 4), slice(None, None, 4)))
@@ -300,7 +300,7 @@ def raytraced():
     from acoustics.paths.scattering import po_backscatter, rigid_sphere_backscatter
     from acoustics.simulation.run import make_setup, simulate
     from acoustics.synthesis.arrivals import arrivals
-    from processing.dataset import TRUTH_GROUP
+    from processing.base.dataset import TRUTH_GROUP
     from tests.test_raytrace import (
         _mirror,
         _path_amplitude,
@@ -390,13 +390,13 @@ def raytraced():
     rock = _scene("pelagic_floor_rock.yaml")
     rt = processing.count(simulate(rock))
     shd = rt[TRUTH_GROUP].ds["target_shadowed"].values.astype(bool)
-    from acoustics.view import render_scene
+    from abacus.view import render_scene
     render_scene(rock, ROOT / "docs" / "figures" / "scene_pelagic_floor_rock.png",
                  window_size=(1200, 800))
     import shutil
     import tempfile
 
-    from processing.plots import image_figures
+    from abacus.figures.plots import image_figures
     with tempfile.TemporaryDirectory() as tmp:
         image_figures(processing.images_of(rt), Path(tmp), ping=0)
         shutil.copy(Path(tmp) / "fan_beam.png", ROOT / "docs" / "figures" / "pelagic_floor_rock_fan.png")

@@ -1,6 +1,6 @@
 """abacus.processing — the inverse problem: echoes -> images -> detections -> counts.
 
-Works from the data contract alone (:mod:`processing.dataset`), so it runs the same on simulated
+Works from the data contract alone (:mod:`processing.base.dataset`), so it runs the same on simulated
 and recorded data; it never imports ``acoustics``. Public surface (docs/api.md; imported on first
 use, so ``import processing`` is cheap)::
 
@@ -21,19 +21,19 @@ import importlib
 
 #: public name -> module that defines it
 _API = {
-    "image": "processing.products", "detect": "processing.products", "count": "processing.products",
-    "images_of": "processing.products", "detections_of": "processing.products",
-    "counts_of": "processing.products", "count_summary": "processing.products",
-    "format_counts": "processing.products", "volume_of": "processing.products",
-    "write_csv": "processing.products", "resolve_settings": "processing.products",
-    "open_tree": "processing.dataset", "write_tree": "processing.dataset",
-    "read_record": "processing.dataset", "DatasetError": "processing.dataset",
-    "Images": "processing.imaging",
-    "NoiseEstimateError": "processing.noise",
-    "ConfigError": "processing.config",
+    "image": "processing.records", "detect": "processing.records", "count": "processing.records",
+    "images_of": "processing.records", "detections_of": "processing.records",
+    "counts_of": "processing.records", "count_summary": "processing.records",
+    "format_counts": "processing.records", "volume_of": "processing.records",
+    "write_csv": "processing.records", "resolve_settings": "processing.records",
+    "open_tree": "processing.base.dataset", "write_tree": "processing.base.dataset",
+    "read_record": "processing.base.dataset", "DatasetError": "processing.base.dataset",
+    "Images": "processing.imaging.images",
+    "NoiseEstimateError": "processing.detection.noise",
+    "ConfigError": "processing.base.config",
     "ProcessingSettings": "processing.settings", "ImageSettings": "processing.settings",
     "load_settings": "processing.settings",
-    "track": "processing.tracks", "tracks_of": "processing.tracks",
+    "track": "processing.tracking.tracks", "tracks_of": "processing.tracking.tracks",
 }
 
 __all__ = sorted(_API)

@@ -21,15 +21,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .counting import CountingVolume
-from .detection import (DetectionWarning, Detections, Thresholds, candidates, detect_all,
+from processing.base.counting_volume import CountingVolume
+from processing.detection.detect import (DetectionWarning, Detections, Thresholds, candidates, detect_all,
                         fit_noise_cells, noise_cells, ping_thresholds, select, snr_db)
-from .imaging import form_images
-from .noise import NoiseEstimateError, RayleighFit, rayleigh_mean
-from .resources import usable_cores
-from .settings import ProcessingSettings
+from processing.imaging.images import form_images
+from processing.detection.noise import NoiseEstimateError, RayleighFit, rayleigh_mean
+from processing.base.resources import usable_cores
+from processing.settings import ProcessingSettings
 
-__all__ = ["detect_record", "record_pings", "default_workers", "DEFAULT_CHUNK_PINGS"]
+__all__ = ["detect_record", "record_pings", "default_workers", "DEFAULT_CHUNK_PINGS", "chain_memory_terms"]
 
 #: pings imaged at once: 4 pings of the thesis' images are ~13 MB of complex images, ~20 MB with
 #: their magnitudes, per thread (measured on the default scene: processing peaks 78 MB above the
@@ -68,6 +68,53 @@ def default_workers() -> int:
     """Threads for the chain: the cores this process may use (at most 4: memory is one chunk's
     images per thread)."""
     return min(4, usable_cores())
+
+
+#: pings per chunk assumed by the memory bound (twice the default: a caller may ask for more)
+_BOUND_CHUNK_PINGS = 8
+
+
+def chain_memory_terms(settings: ProcessingSettings, *, pings: int, channels: int, samples: int,
+                       pulse_samples: float, sample_spacing_m: float, groups: int,
+                       images: str = "none") -> list:
+    """What the chain holds at once, as ``(name, bytes)`` terms for a resource estimate
+    (an upper bound: computed before anything is allocated).
+
+    Parameters
+    ----------
+    settings : ProcessingSettings
+    pings, channels, samples : int
+        The record's shape: pings x receive elements x samples per ping.
+    pulse_samples : float
+        The transmit pulse's length in samples.
+    sample_spacing_m : float
+        Range between samples, c / (2 fs) (m).
+    groups : int
+        Images per ping (2 in interferometric mode, else 1).
+    images : {"none", "native", "full"}
+        Whether the images are stored too.
+
+    Returns
+    -------
+    list of (str, float)
+        ``"processing"``: per thread (at most :func:`default_workers`) a chunk of pings of
+        compressed spectra, interpolated channels and complex images; ``"stored images"`` when
+        kept.
+    """
+    im = settings.image
+    rows = samples * im.interpolation
+    if im.range_m is not None:   # only the image's range window is kept
+        rows = min(rows, int((im.range_m[1] - im.range_m[0]) / sample_spacing_m * im.interpolation) + 2)
+    beams = im.n_beams or 64
+    nfft = 1.1 * (samples + pulse_samples)
+    chunk = min(_BOUND_CHUNK_PINGS, pings)
+    per_thread = chunk * (channels * nfft * (1 + im.interpolation) * 16 + groups * rows * beams * 16)
+    threads = min(default_workers(), max(1, -(-pings // max(1, chunk))))
+    terms = [("processing", threads * per_thread)]
+    if images != "none":
+        r = rows if images == "full" else samples
+        terms.append(("stored images", float(pings) * groups * r * beams * 8))
+    return terms
 
 
 def _pools_image_noise(st) -> bool:
@@ -246,7 +293,7 @@ def detect_record(record, settings: ProcessingSettings, volume: CountingVolume, 
     Returns
     -------
     detections : Detections
-        As :func:`processing.detection.detect_all` over every ping (``ping`` indexes the record).
+        As :func:`processing.detection.detect.detect_all` over every ping (``ping`` indexes the record).
     kept : Images or None
         The images of ``keep_pings``, in that order (None when none were asked for).
     """

@@ -10,7 +10,8 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from .config import (AngleDeg, AngleRangeDeg, ConfigModel, Count, NonNegativeReal, PositiveCount, PositiveReal,
+from processing.base.counting_volume import DEFAULT_IMAGE_RANGE_M
+from processing.base.config import (AngleDeg, AngleRangeDeg, ConfigModel, Count, NonNegativeReal, PositiveCount, PositiveReal,
                      Real, read_yaml, validate_file)
 
 __all__ = ["ImageSettings", "NoiseSettings", "CfarSettings", "DetectSettings", "CountSettings", "TrackSettings",
@@ -23,7 +24,7 @@ WINDOWS = ("rectangular", "hamming", "hann", "taylor", "blackman")
 class ImageSettings(ConfigModel):
     """Pulse compression, interpolation and beamforming (thesis chapter 4)."""
 
-    range_m: tuple[PositiveReal, PositiveReal] | None = (13.0, 26.0)
+    range_m: tuple[PositiveReal, PositiveReal] | None = DEFAULT_IMAGE_RANGE_M
     """Image range limits (m); null keeps the whole record."""
     range_window: Literal[WINDOWS] = "hamming"
     """Range (frequency-domain) weighting of the matched filter (§4.3)."""
@@ -145,7 +146,7 @@ class CountSettings(ConfigModel):
 
 
 class TrackSettings(ConfigModel):
-    """Tracking detections across pings (processing/tracking.py): filter, gate, confirmation
+    """Tracking detections across pings (processing/tracking/filters.py): filter, gate, confirmation
     and deletion rules, and the distance within which a track scores as a true fish."""
 
     method: Literal["kalman", "alpha_beta"] = "kalman"
@@ -176,7 +177,7 @@ class TrackSettings(ConfigModel):
     the compensable beam (TS NaN) is kept."""
     interference_db: Real = Field(20.0, ge=0, le=100)
     """Signal-to-interference ratio (dB) capping a detection's effective SNR in its position
-    covariance (processing.tracking.measurement_covariance)."""
+    covariance (processing.tracking.filters.measurement_covariance)."""
     score_distance_m: PositiveReal = Field(0.3, le=10)
     """A track's position within this distance of a true fish matches it (scoring)."""
 
@@ -199,6 +200,6 @@ class ProcessingSettings(ConfigModel):
 
 def load_settings(path: str | Path) -> ProcessingSettings:
     """Read processing settings from their own YAML file (same keys as a scene's
-    ``processing`` section). Raises :class:`processing.config.ConfigError`."""
+    ``processing`` section). Raises :class:`processing.base.config.ConfigError`."""
     data, marks = read_yaml(path)
     return validate_file(ProcessingSettings, data, file=path, marks=marks)

@@ -1,5 +1,6 @@
-"""The design, guarded: stage packages without import cycles, processing independent of
-acoustics, no reaching into another module's private names, every package shipped."""
+"""The design, guarded: three layers (abacus -> acoustics, processing; acoustics -> only
+processing.base; processing -> neither, and processing.base -> nothing above it), no import
+cycles, no reaching into another module's private names, every package shipped."""
 from __future__ import annotations
 
 import ast
@@ -7,16 +8,22 @@ import re
 
 from .conftest import ROOT
 
-PACKAGES = ("acoustics", "processing")
-#: the processing modules acoustics may use: the shared config/settings machinery, the data
-#: contract and its writer, the counting volume, atomic outputs, and the evaluation an
-#: experiment runs per ping (processing is the lower layer; it must never need acoustics)
-ALLOWED_FROM_PROCESSING = {
-    "processing", "processing.config", "processing.settings", "processing.dataset",
-    "processing.atomic", "processing.counting", "processing.noise", "processing.evaluate",
-    "processing.results", "processing.report", "processing.plots", "processing.products",
-    "processing.resources", "processing.chain", "processing.tracks", "processing.track_plots",
-    "processing.volume_backscatter", "processing.single_targets", "processing.convert",
+PACKAGES = ("abacus", "acoustics", "processing")
+
+
+def layer_of(module: str) -> str:
+    """The layer a module belongs to: 'abacus', 'acoustics', 'processing.base' or 'processing'."""
+    if module == "processing.base" or module.startswith("processing.base."):
+        return "processing.base"
+    return module.split(".")[0]
+
+
+#: layer -> the layers it may import (its own included); nothing else of ours
+MAY_IMPORT = {
+    "abacus": {"abacus", "acoustics", "processing", "processing.base"},
+    "acoustics": {"acoustics", "processing.base"},
+    "processing": {"processing", "processing.base"},
+    "processing.base": {"processing.base"},
 }
 
 
@@ -117,16 +124,31 @@ def test_no_import_cycles_among_modules():
     assert _cycles(_graph()) == []
 
 
-def test_processing_never_imports_acoustics():
-    bad = [f"{name}:{line}" for name, path in MODULES.items() if name.startswith("processing")
-           for target, line, *_ in _imports(name, path) if target.split(".")[0] == "acoustics"]
-    assert bad == []
+def _upward_imports():
+    """Imports of a module of ours that its layer may not make, as 'module:line -> target'."""
+    bad = []
+    for name, path in MODULES.items():
+        allowed = MAY_IMPORT[layer_of(name)]
+        for target, line, *_ in _imports(name, path):
+            if target.split(".")[0] in PACKAGES and layer_of(target) not in allowed:
+                bad.append(f"{name}:{line} -> {target}")
+    return bad
 
 
-def test_acoustics_uses_only_the_allowed_processing_modules():
-    used = {(target, f"{name}:{line}") for name, path in MODULES.items() if name.startswith("acoustics")
-            for target, line, *_ in _imports(name, path) if target.split(".")[0] == "processing"}
-    assert sorted(w for t, w in used if t not in ALLOWED_FROM_PROCESSING) == []
+def test_every_import_respects_the_layers():
+    """The rule is by layer, with no list of exceptions: the application joins the two models;
+    the forward model uses only processing's base (contract, configuration, file safety, the
+    counting volume); processing never needs the simulator or the application."""
+    assert _upward_imports() == []
+
+
+def test_the_layer_rule_is_enforced():
+    """The check itself: an upward import would be caught (not a test that cannot fail)."""
+    assert layer_of("processing.base.dataset") == "processing.base"
+    assert "acoustics" not in MAY_IMPORT[layer_of("processing.detection.detect")]
+    assert "processing" not in MAY_IMPORT[layer_of("acoustics.scene.schema")]
+    assert "abacus" not in MAY_IMPORT["acoustics"] | MAY_IMPORT["processing"]
+    assert "processing" not in MAY_IMPORT["processing.base"]
 
 
 def test_no_private_names_imported_across_modules():

@@ -11,7 +11,7 @@ from .conftest import ROOT
 
 
 def abacus(*args, cwd, pre: str = "pass"):
-    code = f"{pre}; import sys; from acoustics.cli import main; sys.exit(main({list(args)!r}))"
+    code = f"{pre}; import sys; from abacus.cli import main; sys.exit(main({list(args)!r}))"
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=cwd)
 
 
@@ -53,7 +53,7 @@ def test_view_without_pyvista_says_how_to_get_it(tmp_path):
 
 
 def test_python_m_acoustics_is_the_command_line(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "acoustics", "--version"], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "abacus", "--version"], capture_output=True,
                        text=True, cwd=tmp_path)
     assert r.returncode == 0 and r.stdout.startswith("abacus ")
 
@@ -68,7 +68,7 @@ def test_an_interrupt_inside_a_compiled_kernel_is_still_an_interrupt(tmp_path):
     """SIGINT landing inside a numba kernel surfaces as ``SystemError: ... returned a result with
     an exception set`` caused by the KeyboardInterrupt: exit 130 'interrupted', not an internal
     error (seen once in the reliability probes)."""
-    pre = ("import acoustics.cli.beams as b\n"
+    pre = ("import abacus.cli.beams as b\n"
            "def boom(args):\n"
            "    try:\n"
            "        raise KeyboardInterrupt\n"
@@ -83,7 +83,7 @@ def test_an_interrupt_swallowed_by_a_library_still_ends_as_an_interrupt(tmp_path
     """matplotlib's drawing code can swallow the KeyboardInterrupt of a SIGINT and fail later
     with an unrelated error (seen in the reliability probes: 'Invalid bounding box'): the
     process still ends as interrupted (130), not as an internal error."""
-    pre = ("import acoustics.cli.beams as b\n"
+    pre = ("import abacus.cli.beams as b\n"
            "import os, signal\n"
            "def boom(args):\n"
            "    try:\n"
@@ -102,7 +102,7 @@ def test_an_interrupt_landing_in_a_finaliser_ends_the_command_as_an_interrupt(tm
     only print ('Exception ignored in ...', a traceback) and drop, and the command would go on
     (seen once in the reliability probes: SIGINT during an experiment): it still ends the
     command at once, 130 'interrupted', with no traceback."""
-    pre = ("import acoustics.cli.beams as b\n"
+    pre = ("import abacus.cli.beams as b\n"
            "import os, signal, threading, time\n"
            "class Finaliser:\n"
            "    def __del__(self):\n"

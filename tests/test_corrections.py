@@ -83,7 +83,7 @@ def test_density_where_the_targets_are_and_of_the_counting_volume():
     sector between 15 and 25 m (exact geometry), within the order-statistics error of a few %."""
     import processing
     import acoustics
-    from processing.counting import counting_volume
+    from processing.base.counting_volume import counting_volume
     sc = scene_from_text("""name: layer
 medium: {sound_speed_m_s: 1530}
 targets:
@@ -116,7 +116,7 @@ def test_a_school_of_known_density_is_read_where_it_is():
     ellipsoid's curved top and bottom leave empty at the fan's edges."""
     import acoustics
     import processing
-    from processing.counting import counting_volume
+    from processing.base.counting_volume import counting_volume
     sc = scene_from_text("""name: school-density
 medium: {sound_speed_m_s: 1530}
 targets:

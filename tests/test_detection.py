@@ -15,11 +15,11 @@ import processing
 from acoustics import SceneWarning, load_scene
 from acoustics.scene import scene_from_text
 from acoustics.simulation.run import simulate
-from processing.counting import CountingVolume
-from processing.locate import locate
-from processing.noise import NoiseEstimateError, rayleigh_fit
-from processing.scoring import match
-from processing.thresholds import (ca_cfar_factor, cell_pfa, cfar_threshold, os_cfar_factor,
+from processing.base.counting_volume import CountingVolume
+from processing.detection.locate import locate
+from processing.detection.noise import NoiseEstimateError, rayleigh_fit
+from processing.detection.scoring import match
+from processing.detection.thresholds import (ca_cfar_factor, cell_pfa, cfar_threshold, os_cfar_factor,
                                    rayleigh_threshold)
 
 from .conftest import LAMBDA_M, ROOT, SCENES
@@ -118,7 +118,7 @@ def test_noise_only_mean_matches_sigma_and_the_filter_gains(noise_only):
     assert fit.rayleigh_like
     # the gain is what the filters predict: matched filter (Hann-shaped |U|², Hamming window,
     # noise in the fs/2 band) times the Hamming beamformer Σw²/(Σw)²
-    from processing.compression import window
+    from processing.imaging.compression import window
     w = window("hamming", 8)
     assert im.noise_power_gain / (np.sum(w**2) / np.sum(w) ** 2) == pytest.approx(0.0137, rel=0.1)
 
@@ -323,12 +323,12 @@ def test_position_scenario_table_6_4():
 def test_abacus_count_json_and_csv(tmp_path):
     tree = simulate(scene("two_targets.yaml"))
     path = processing.write_tree(tree, tmp_path / "two.nc")
-    r = subprocess.run([sys.executable, "-m", "acoustics.cli", "count", str(path), "--json",
+    r = subprocess.run([sys.executable, "-m", "abacus.cli", "count", str(path), "--json",
                         "--csv", str(tmp_path / "det.csv"), "--settings", str(tmp_path / "s.yaml")],
                        capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 2 and "no such file" in r.stderr and "Traceback" not in r.stderr
     (tmp_path / "s.yaml").write_text("detect: {method: fraction_of_peak, fraction: 0.15}\n")
-    r = subprocess.run([sys.executable, "-m", "acoustics.cli", "count", str(path), "--json",
+    r = subprocess.run([sys.executable, "-m", "abacus.cli", "count", str(path), "--json",
                         "--csv", str(tmp_path / "det.csv"), "--settings", str(tmp_path / "s.yaml")],
                        capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0, r.stderr
@@ -341,6 +341,6 @@ def test_abacus_count_json_and_csv(tmp_path):
 def test_abacus_count_on_a_file_that_is_not_a_dataset(tmp_path):
     bad = tmp_path / "bad.nc"
     bad.write_text("not netcdf")
-    r = subprocess.run([sys.executable, "-m", "acoustics.cli", "count", str(bad)], capture_output=True,
+    r = subprocess.run([sys.executable, "-m", "abacus.cli", "count", str(bad)], capture_output=True,
                        text=True, cwd=ROOT)
     assert r.returncode == 2 and str(bad) in r.stderr and "Traceback" not in r.stderr

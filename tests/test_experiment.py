@@ -13,15 +13,15 @@ import xarray as xr
 
 import processing
 from acoustics import SceneWarning, load_scene
-from acoustics.experiment import ExperimentError, experiment_plan, parse_sweep, run_experiment
+from abacus.experiment import ExperimentError, experiment_plan, parse_sweep, run_experiment
 from acoustics.scene import scene_from_text
 from acoustics.simulation.run import simulate
-from processing.beamforming import SubarrayGeometry
-from processing.compression import RangeFilter
-from processing.dataset import read_record
-from processing.calibration import beam_solid_angle_sr, calibration_of, range_energy_width_m
-from processing.echo_integration import volume_backscattering
-from processing.evaluate import PER_PING_KEYS
+from processing.imaging.beamforming import SubarrayGeometry
+from processing.imaging.compression import RangeFilter
+from processing.base.dataset import read_record
+from processing.backscatter.calibration import beam_solid_angle_sr, calibration_of, range_energy_width_m
+from processing.backscatter.echo_integration import volume_backscattering
+from abacus.evaluate import PER_PING_KEYS
 
 from .conftest import SCENES
 from .test_scene import _abacus
@@ -64,7 +64,7 @@ def test_threshold_sweep_in_thesis_units_keeps_T_over_mu():
     sc = load("default.yaml")
     plan = experiment_plan(sc, parse_sweep("threshold=139.8,279.6"))
     tree = simulate(sc, pings=[0])
-    from processing.evaluate import evaluate
+    from abacus.evaluate import evaluate
     ev = evaluate(tree, [p.settings for p in plan])["per_ping"]
     mu = ev["noise_sigma_counts"][1, 0] * math.sqrt(math.pi / 2)
     assert ev["threshold_counts"][1, 0] == pytest.approx(mu, rel=1e-12)
@@ -195,7 +195,7 @@ def test_pelagic_scenario_target_strength_and_threshold_plateau(tmp_path):
       derived from the noise statistics (correct convention, α = 1e-7) lies on the plateau of
       near-zero mean count error after interferometry (±0.5 targets per ping, the report's
       definition), and the plateau spans several sweep points (thesis §6.3.6, Fig. 6.22)."""
-    from processing.report import derived_in_sweep_units, plateau
+    from abacus.report import derived_in_sweep_units, plateau
     path = run_experiment(load("default.yaml"), tmp_path / "ts", workers=0, figure_pings=0,
                           sweep=parse_sweep("threshold=600:2000:100"), report=False)
     with xr.open_dataset(path) as ds:

@@ -12,12 +12,12 @@ from acoustics import SceneWarning, load_scene
 from acoustics.sonar.directivity import array_response, element_directivity
 from acoustics.scene import scene_from_text
 from acoustics.simulation.run import make_setup, simulate
-from processing.beamforming import SubarrayGeometry, beamform_das, beamform_fft
-from processing.compression import RangeFilter, compress, window
-from processing.dataset import DatasetError, read_record
-from processing.imaging import form_images
-from processing.interferometry import elevation_from_phase, phase_from_elevation
-from processing.peaks import local_maxima, refine_peaks
+from processing.imaging.beamforming import SubarrayGeometry, beamform_das, beamform_fft
+from processing.imaging.compression import RangeFilter, compress, window
+from processing.base.dataset import DatasetError, read_record
+from processing.imaging.images import form_images
+from processing.imaging.interferometry import elevation_from_phase, phase_from_elevation
+from processing.detection.peaks import local_maxima, refine_peaks
 from processing.settings import ImageSettings
 
 from .conftest import LAMBDA_M, SCENES
@@ -280,7 +280,7 @@ def test_fft_beamforming_is_the_shifted_dft_with_the_phase_centre_correction(rng
 def test_interpolation_by_zero_padding_the_spectrum(rng, upsample):
     """to_time pads the band-limited spectrum with zeros (the two halves scaled by U) whatever
     the storage precision of the spectra."""
-    from processing.compression import to_time
+    from processing.imaging.compression import to_time
     rf = RangeFilter.design(np.exp(1j * rng.uniform(0, 6.3, 40)), n_samples=301, rate_hz=1e5,
                             bandwidth_hz=2e4)
     n = rf.nfft

@@ -12,7 +12,7 @@ import xarray as xr
 
 import acoustics
 import processing
-from processing.dataset import ELEMENT_GROUP, TRUTH_GROUP, beam_samples, open_tree
+from processing.base.dataset import ELEMENT_GROUP, TRUTH_GROUP, beam_samples, open_tree
 
 from .test_cli import abacus
 

@@ -44,7 +44,7 @@ def test_xarray_still_recognises_dask_arrays_once_dask_is_imported(tmp_path):
     pytest.importorskip("dask.array")
     got = _python(
         "import json, numpy as np, warnings; warnings.simplefilter('ignore')\n"
-        "import processing.dataset, xarray as xr\n"
+        "import processing.base.dataset, xarray as xr\n"
         "plain = xr.DataArray(np.arange(6.0), dims='x')\n"           # probed before Dask
         "import dask.array as da\n"
         "lazy = xr.DataArray(da.arange(6.0, chunks=2), dims='x')\n"
@@ -69,13 +69,13 @@ def test_writing_restores_the_netcdf_chunk_cache(tmp_path):
 
 
 def test_the_figure_helper_imports_only_what_it_draws_with(tmp_path):
-    """The helper (matplotlib, processing.plots, a warm-up draw, a fan-beam resampling) loads
+    """The helper (matplotlib, abacus.figures.plots, a warm-up draw, a fan-beam resampling) loads
     none of the run's heavy modules: scipy alone cost it ≈ 0.3 s of its start."""
     got = _python(
         "import json, sys, numpy as np\n"
         "import matplotlib; matplotlib.use('Agg')\n"
-        "import processing.plots as p\n"
-        "from acoustics.cli.figure_worker import _warm_up; _warm_up()\n"
+        "import abacus.figures.plots as p\n"
+        "from abacus.cli.figure_worker import _warm_up; _warm_up()\n"
         "p.fan_beam(np.ones((50, 8)), np.linspace(1, 5, 50), np.linspace(-0.1, 0.1, 8))\n"
         "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules} & "
         "{'scipy', 'xarray', 'pandas', 'numba', 'pydantic', 'netCDF4', 'h5py'})))",
@@ -89,8 +89,8 @@ def test_the_figure_helper_draws_what_this_process_draws(tmp_path):
 
     import acoustics
     import processing
-    from acoustics.cli.figure_worker import FigureWorker
-    from processing.plots import count_figure_data, draw_counts_figure, draw_detection_figure
+    from abacus.cli.figure_worker import FigureWorker
+    from abacus.figures.plots import count_figure_data, draw_counts_figure, draw_detection_figure
     tree = processing.count(acoustics.simulate(acoustics.load_scene("two_targets"), pings=range(2)))
     data = count_figure_data(tree, pings=[1])
     here, there = tmp_path / "here", tmp_path / "there"
@@ -113,8 +113,8 @@ def test_the_run_figures_put_titles_where_matplotlib_would(tmp_path):
 
     import acoustics
     import processing
-    from processing import plots
-    from processing.products import figure_images
+    from abacus.figures import plots
+    from processing.records import figure_images
     tree = processing.count(acoustics.simulate(acoustics.load_scene("default"), pings=range(1)))
     images = plots.image_figure_data(figure_images(tree, [0]))
     counts = plots.count_figure_data(tree, pings=[0])
@@ -136,8 +136,8 @@ def test_queued_figures_are_drawn_by_forked_copies_that_die_with_the_helper(tmp_
 
     import acoustics
     import processing
-    from acoustics.cli.figure_worker import FigureWorker
-    from processing.plots import count_figure_data, draw_detection_figure
+    from abacus.cli.figure_worker import FigureWorker
+    from abacus.figures.plots import count_figure_data, draw_detection_figure
     tree = processing.count(acoustics.simulate(acoustics.load_scene("default"), pings=range(3)))
     data = count_figure_data(tree, pings=range(3))["detections"]
     seen, stop = set(), threading.Event()
@@ -184,7 +184,7 @@ def test_queued_figures_are_drawn_by_forked_copies_that_die_with_the_helper(tmp_
 def test_the_run_splits_its_last_figures_evenly_over_the_drawers(n, drawers):
     """Every figure once, in order, in at most ``drawers`` consecutive shares that differ by at
     most one figure, the larger first (the forked copies take the first shares and start first)."""
-    from acoustics.cli.run import drawing_shares
+    from abacus.cli.run import drawing_shares
     shares = drawing_shares(n, drawers)
     figures = list(range(n))
     assert [i for s in shares for i in figures[s]] == figures
@@ -202,7 +202,7 @@ def _running(proc) -> bool:
 
 
 def test_a_figure_that_fails_is_one_error_and_the_helper_ends(tmp_path):
-    from acoustics.cli.figure_worker import FigureError, FigureWorker
+    from abacus.cli.figure_worker import FigureError, FigureWorker
     helper = FigureWorker()
     with pytest.raises(ValueError, match="unknown figure job"):
         helper.submit("os.system", {}, tmp_path)
@@ -224,7 +224,7 @@ def test_a_figure_that_fails_is_one_error_and_the_helper_ends(tmp_path):
 def test_a_run_folder_killed_while_drawing_leaves_nothing_a_rerun_does_not_remove(tmp_path):
     """The first ping's figures are drawn into a scratch folder next to the run folder before it
     exists; if the run is killed, the next write of that run folder removes it."""
-    from processing.atomic import TMP_MARK, scratch, staged
+    from processing.base.atomic import TMP_MARK, scratch, staged
     stale = tmp_path / f".out.images{TMP_MARK}999999-0123abcd"     # a dead process' scratch
     stale.mkdir()
     (stale / "fan_beam.png").write_bytes(b"x")
@@ -244,7 +244,7 @@ def test_the_figure_helper_dies_with_a_killed_run(tmp_path):
 
     env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg",
                ABACUS_CACHE_DIR=str(tmp_path / "cache"))
-    proc = subprocess.Popen([sys.executable, "-m", "acoustics", "run", "default", "-o", "out",
+    proc = subprocess.Popen([sys.executable, "-m", "abacus", "run", "default", "-o", "out",
                              "--pings", "400"], cwd=tmp_path, env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
@@ -267,7 +267,7 @@ def test_the_figure_helper_dies_with_a_killed_run(tmp_path):
     finally:
         if proc.poll() is None:
             proc.kill()
-    out = subprocess.run([sys.executable, "-m", "acoustics", "run", "default", "-o", "out",
+    out = subprocess.run([sys.executable, "-m", "abacus", "run", "default", "-o", "out",
                           "--pings", "1", "--no-plots"], cwd=tmp_path, env=env, capture_output=True,
                          text=True, timeout=300)
     assert out.returncode == 0, out.stderr
@@ -282,12 +282,12 @@ def test_a_cold_run_has_its_beam_figures_drawn_by_the_helper_and_cached(tmp_path
 
     env = dict(os.environ, PYTHONPATH=str(ROOT), MPLBACKEND="Agg",
                ABACUS_CACHE_DIR=str(tmp_path / "cache"))
-    run = subprocess.run([sys.executable, "-m", "acoustics", "run", "two_targets", "-o", "out",
+    run = subprocess.run([sys.executable, "-m", "abacus", "run", "two_targets", "-o", "out",
                           "--pings", "1"], cwd=tmp_path, env=env, capture_output=True, text=True,
                          timeout=600)
     assert run.returncode == 0, run.stderr
     assert [p.name for p in (tmp_path / "cache").glob("beam_figures-*")]
-    here = subprocess.run([sys.executable, "-c", "import acoustics; from acoustics.cli.beams import "
+    here = subprocess.run([sys.executable, "-c", "import acoustics; from abacus.cli.beams import "
                            "beam_figures; beam_figures(acoustics.load_scene('two_targets'), 'here')"],
                           cwd=tmp_path, env=dict(env, ABACUS_CACHE_DIR="off"), capture_output=True,
                           text=True, timeout=600)
@@ -304,7 +304,7 @@ def test_a_command_line_sets_quiet_threads_before_numpy_loads_and_keeps_the_user
     and OPENBLAS_NUM_THREADS=1 before numpy (and OpenBLAS, which reads it once) is imported,
     unless the user set them; main(argv) inside another program leaves the environment alone."""
     code = ("import json, os, sys\n"
-            "import acoustics.cli.app as app\n"
+            "import abacus.cli.app as app\n"
             "seen = {}\n"
             "def command(argv):\n"
             "    seen.update(numpy='numpy' in sys.modules, omp=os.environ.get('OMP_WAIT_POLICY'),\n"
@@ -344,7 +344,7 @@ def test_the_kernels_threads_wait_asleep_unless_the_user_chose(tmp_path, chosen,
         pytest.skip("numba's OpenMP threading layer cannot load here (no libgomp)")
     if chosen:
         env["OMP_WAIT_POLICY"] = chosen
-    run = subprocess.run([sys.executable, "-m", "acoustics", "simulate", "two_targets", "--pings", "1",
+    run = subprocess.run([sys.executable, "-m", "abacus", "simulate", "two_targets", "--pings", "1",
                           "-o", str(tmp_path / "s.nc")], env=env, capture_output=True, text=True,
                          timeout=300)
     assert run.returncode == 0, run.stderr[-2000:]

@@ -16,9 +16,9 @@ import processing
 from acoustics.scene import SceneWarning
 import processing.chain as chain
 from processing.chain import detect_record, record_pings
-from processing.detection import detect_all, fit_noise_cells, noise_cells
-from processing.imaging import form_images
-from processing.products import noise_band_of, pose_of, resolve_settings, volume_of
+from processing.detection.detect import detect_all, fit_noise_cells, noise_cells
+from processing.imaging.images import form_images
+from processing.records import noise_band_of, pose_of, resolve_settings, volume_of
 
 from .conftest import SCENES
 
@@ -112,7 +112,7 @@ def _counting_images(monkeypatch):
     return calls
 
 
-@pytest.mark.filterwarnings("ignore::processing.detection.DetectionWarning")  # fish in the cells
+@pytest.mark.filterwarnings("ignore::processing.detection.detect.DetectionWarning")  # fish in the cells
 @pytest.mark.parametrize("update", [
     {},                                                       # the default: Rayleigh, region
     {"noise": {"source": "image", "estimator": "median"}},    # a pooled fit of whole images
@@ -176,7 +176,7 @@ def test_a_chunk_whose_candidate_bound_is_too_high_is_imaged_again(pelagic, monk
     _assert_same_detections(det.table, ref.table)
 
 
-@pytest.mark.filterwarnings("ignore::processing.detection.DetectionWarning")  # zeros in the cells
+@pytest.mark.filterwarnings("ignore::processing.detection.detect.DetectionWarning")  # zeros in the cells
 def test_a_noise_free_chunk_is_detected_with_the_pooled_fit(pelagic, monkeypatch):
     """A chunk without noise of its own has no bound for its candidates: it is imaged again
     once the pooled fit is known, and detects what processing every ping at once detects."""
@@ -266,7 +266,7 @@ def test_cached_beam_table_matches_the_thesis_after_a_round_trip(tmp_path, monke
 
 # ------------------------------------------------------------------ the run folder
 def _run(*args, cwd):
-    code = f"import sys; from acoustics.cli import main; sys.exit(main({list(args)!r}))"
+    code = f"import sys; from abacus.cli import main; sys.exit(main({list(args)!r}))"
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=cwd)
 
 
@@ -290,7 +290,7 @@ def test_run_folder_appears_whole_and_is_never_overwritten_silently(tmp_path):
 
 
 def test_default_run_folder_stays_under_runs_whatever_the_scene_name(tmp_path):
-    from acoustics.cli.run import default_run_folder
+    from abacus.cli.run import default_run_folder
     for name in ("../../x", "/etc/passwd", "..", "a/b\\c", "ok-name_1.2"):
         folder = default_run_folder(name)
         assert folder.parts[0] == "runs" and len(folder.parts) == 2
@@ -300,7 +300,7 @@ def test_default_run_folder_stays_under_runs_whatever_the_scene_name(tmp_path):
 def test_a_threshold_sweep_scores_each_setting_as_counting_alone_would(pelagic):
     """evaluate() shares one pool of candidate peaks among settings that differ only in their
     threshold; each setting must still get exactly what counting with it alone gives."""
-    from processing.evaluate import evaluate
+    from abacus.evaluate import evaluate
     _, tree = pelagic
     tree = tree.isel(ping_time=slice(0, 4)) if hasattr(tree, "isel") else tree
     base = resolve_settings(tree)

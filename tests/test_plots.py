@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from processing.plots import _bilinear, fan_beam
+from abacus.figures.plots import _bilinear, fan_beam
 
 
 def test_fan_beam_is_exact_for_a_field_bilinear_in_range_and_sine():
@@ -64,7 +64,7 @@ def test_counts_are_plotted_against_whole_pings(n_pings):
     locator puts a 3-ping run's ticks at quarter pings)."""
     import matplotlib.pyplot as plt
 
-    from processing.plots import counts_figure
+    from abacus.figures.plots import counts_figure
     x = np.arange(n_pings)
     c = {"ping_index": x, "true_in_volume": np.full(n_pings, 5), "count_before": x + 4,
          "count_after": np.full(n_pings, 5), "error_before": x - 1, "error_after": 0 * x}
@@ -89,7 +89,7 @@ def test_one_detection_figure_redrawn_per_ping_gives_each_ping_its_own_pixels(tm
 
     import acoustics
     import processing
-    from processing.plots import count_figure_data, draw_detection_figures
+    from abacus.figures.plots import count_figure_data, draw_detection_figures
     tree = processing.count(acoustics.simulate(acoustics.load_scene(scene), pings=range(3)))
     d0, d1, d2 = count_figure_data(tree, pings=range(3))["detections"]
     none = dict(d1, ping_index=7, fan_x_m=d1["fan_x_m"][:0], fan_z_m=d1["fan_z_m"][:0],

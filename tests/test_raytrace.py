@@ -19,8 +19,8 @@ from acoustics.paths.scattering import lambert_sb, po_backscatter, rigid_sphere_
 from acoustics.scene import SceneError, scene_from_text
 from acoustics.simulation.run import make_setup, simulate
 import processing
-from processing.compression import RangeFilter, window
-from processing.dataset import TRUTH_GROUP, read_record
+from processing.imaging.compression import RangeFilter, window
+from processing.base.dataset import TRUTH_GROUP, read_record
 
 from .conftest import SCENES
 from .test_scene import _abacus

@@ -9,7 +9,8 @@ import warnings
 import pytest
 
 from acoustics import SceneError, SceneWarning, load_scene
-from acoustics.scene import json_schema_text, scene_from_text
+from abacus.runfile import json_schema_text
+from acoustics.scene import scene_from_text
 
 from .conftest import ROOT, SCENES
 
@@ -206,10 +207,14 @@ def test_several_problems_are_all_reported(write_scene):
 
 
 # --------------------------------------------------------------- cross checks
-def _warnings(path):
+def _warnings(path, loader=None):
+    """The SceneWarnings of loading a scene (by default as the application loads a run file:
+    the scene's physics and its processing block)."""
+    if loader is None:
+        from abacus.runfile import load_run as loader
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
-        load_scene(path)
+        loader(path)
     return [str(x.message) for x in w if issubclass(x.category, SceneWarning)]
 
 
@@ -256,7 +261,8 @@ def test_a_noise_free_point_target_is_counted_once():
     import processing
     with warnings.catch_warnings():
         warnings.simplefilter("error", SceneWarning)
-        scene = load_scene(SCENES / "point_target.yaml")
+        from abacus.runfile import load_run
+        scene = load_run(SCENES / "point_target.yaml")
     summary = processing.count_summary(processing.count(acoustics.simulate(scene)))["summary"]
     assert summary["true_in_volume"]["mean"] == 1.0
     assert summary["count_before"]["mean"] == summary["count_after"]["mean"] == 1.0, summary
@@ -284,7 +290,7 @@ def test_no_spurious_warnings_for_a_dense_array(write_scene):
 
 # -------------------------------------------------------------------- the CLI
 def _abacus(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "acoustics.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "abacus.cli", *args], capture_output=True,
                           text=True, cwd=cwd or ROOT)
 
 
@@ -303,4 +309,5 @@ def test_cli_scene_show_round_trips(write_scene, tmp_path):
     shown.write_text(r.stdout)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
-        assert load_scene(shown).sha256() == load_scene(SCENES / "default.yaml").sha256()
+        from abacus.runfile import load_run
+        assert load_run(shown).sha256() == load_run(SCENES / "default.yaml").sha256()

@@ -14,7 +14,7 @@ from acoustics.sonar.directivity import array_response, element_directivity
 from acoustics.scene import scene_from_text
 from acoustics.simulation.run import make_setup, simulate
 from acoustics.synthesis.synthesize import synthesize
-from processing.dataset import ELEMENT_GROUP, TRUTH_GROUP, beam_samples, open_tree, read_record, write_tree
+from processing.base.dataset import ELEMENT_GROUP, TRUTH_GROUP, beam_samples, open_tree, read_record, write_tree
 
 from .conftest import SCENES
 

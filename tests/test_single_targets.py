@@ -1,4 +1,4 @@
-"""Single targets and their TS (processing/single_targets.py), and the exports a user takes to
+"""Single targets and their TS (processing/backscatter/single_targets.py), and the exports a user takes to
 other tools: the single-target CSV and `abacus sv`."""
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 
 import acoustics
 import processing
-from processing.single_targets import single_target_table
+from processing.backscatter.single_targets import single_target_table
 
 from .conftest import ROOT
 from .test_cli import abacus

@@ -1,5 +1,5 @@
-"""Tracking across pings (processing/tracking.py, processing/tracks.py) and beam-compensated TS
-(processing/target_strength.py): ground truth recovered on cases simple enough to reason about."""
+"""Tracking across pings (processing/tracking/filters.py, processing/tracking/tracks.py) and beam-compensated TS
+(processing/backscatter/target_strength.py): ground truth recovered on cases simple enough to reason about."""
 from __future__ import annotations
 
 import warnings
@@ -10,11 +10,11 @@ import pytest
 import acoustics
 import processing
 from acoustics.scene import SceneWarning, scene_from_text
-from processing.calibration import calibration_of
-from processing.target_strength import beam_pattern_of, target_strength_db
-from processing.tracking import cv_matrices, measurement_covariance, track_detections
-from processing.single_targets import single_targets
-from processing.tracks import track, tracks_of
+from processing.backscatter.calibration import calibration_of
+from processing.backscatter.target_strength import beam_pattern_of, target_strength_db
+from processing.tracking.filters import cv_matrices, measurement_covariance, track_detections
+from processing.backscatter.single_targets import single_targets
+from processing.tracking.tracks import track, tracks_of
 
 
 def _quiet(text):

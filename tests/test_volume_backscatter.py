@@ -1,4 +1,4 @@
-"""Calibrated Sv per cell, its gridded means (MVBS) and NASC (processing/volume_backscatter.py):
+"""Calibrated Sv per cell, its gridded means (MVBS) and NASC (processing/backscatter/sv.py):
 a layer of scatterers of known s_v read back, and the grid arithmetic against hand sums."""
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 
 import acoustics
 from acoustics.scene import SceneWarning, scene_from_text
-from processing.volume_backscatter import (NMI_M, SV_GROUP, backscatter, mean_volume_backscatter, nasc,
+from processing.backscatter.sv import (NMI_M, SV_GROUP, backscatter, mean_volume_backscatter, nasc,
                                            sv_db)
 
 LAYER = """

@@ -63,16 +63,6 @@ def cross_check(scene, *, notes: list | None = None) -> list[tuple[str, str]]:
         elif r > r_max:
             out.append((f"target at {r:.3g} m is beyond the last range whose whole echo is "
                         f"recorded ({r_max:.3g} m)", key))
-    st = scene.processing.detect
-    background = scene.noise.enabled or (scene.effects.reverberation.enabled and scene.boundaries)
-    if st.needs_noise and st.noise.source in ("image", "region") and not background:
-        # the Rayleigh fit then takes the targets' sidelobes and the numerical floor for noise:
-        # its threshold sits below the sidelobes and counts them (point_target: 53 for 1)
-        out.append((f"the images hold no noise (noise.enabled is false, and no reverberation), "
-                    f"yet the detection threshold is derived from their noise (method "
-                    f"'{st.method}'): it would be fitted to the targets' own sidelobes and count "
-                    f"them; use method 'fraction_of_peak' (with fraction) or 'fixed' (with value "
-                    f"in counts), or enable noise", "processing.detect.method"))
     for i, p in enumerate(scene.targets.populations):
         if isinstance(p, SectorPopulation) and p.range_m[0] < blind:
             out.append((f"population reaches into the blind zone (< {blind:.3g} m)",

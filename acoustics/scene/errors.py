@@ -1,7 +1,7 @@
 """The errors and warnings of scene files."""
 from __future__ import annotations
 
-from processing.config import ConfigError, ConfigWarning
+from processing.base.config import ConfigError, ConfigWarning
 
 __all__ = ["SceneError", "SceneWarning", "key_tuple"]
 

@@ -8,7 +8,7 @@ from acoustics.scene.builtin import resolve_scene_argument
 from acoustics.scene.checks import cross_check
 from acoustics.scene.errors import SceneError, SceneWarning, key_tuple
 from acoustics.scene.schema import Scene
-from processing.config import ConfigError, parse_yaml, read_yaml
+from processing.base.config import ConfigError, parse_yaml, read_yaml
 
 __all__ = ["load_scene", "scene_from_text", "scene_from_resolved_text", "validate_scene", "mesh_files",
            "key_tuple"]

@@ -16,7 +16,7 @@ from typing import Annotated, Literal, Union
 
 from pydantic import Discriminator, Field, Tag, field_validator, model_validator
 
-from processing.config import (ConfigModel, Count, NonNegativeReal, PositiveCount, PositiveReal,
+from processing.base.config import (ConfigModel, Count, NonNegativeReal, PositiveCount, PositiveReal,
                                Real, Vec3)
 
 __all__ = ["MeshSpec", "BoundarySpec", "MeshTargetSpec", "ReverberationSpec", "SpecularSpec",

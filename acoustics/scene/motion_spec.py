@@ -12,7 +12,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from processing.config import AngleDeg, ConfigModel, NonNegativeReal, PositiveCount, Real
+from processing.base.config import AngleDeg, ConfigModel, NonNegativeReal, PositiveCount, Real
 
 __all__ = ["SwimSpec", "SwellSpec", "MotionSeriesSpec", "PlatformMotionSpec"]
 

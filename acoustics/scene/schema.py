@@ -23,9 +23,8 @@ from acoustics.scene.meshes_spec import BoundarySpec, ReverberationSpec, Specula
 from acoustics.scene.sonar_spec import SonarSpec
 from acoustics.scene.targets_spec import TargetsSpec
 from acoustics.sonar import preset
-from processing.config import (ConfigError, ConfigModel, Count, NonNegativeReal, PositiveCount,
+from processing.base.config import (ConfigError, ConfigModel, Count, NonNegativeReal, PositiveCount,
                                PositiveReal, Real, dump_yaml, parse_yaml, validate_file)
-from processing.settings import ProcessingSettings
 
 __all__ = ["SCHEMA_VERSION", "Scene", "SignalSpec", "AdcSpec", "SamplingSpec", "MediumSpec",
            "NoiseSpec", "PingsSpec", "EffectsSpec", "json_schema", "json_schema_text"]
@@ -211,7 +210,11 @@ class Scene(ConfigModel):
     boundaries: tuple[BoundarySpec, ...] = ()
     pings: PingsSpec = PingsSpec()
     effects: EffectsSpec = EffectsSpec()
-    processing: ProcessingSettings = ProcessingSettings()
+    processing: dict = Field(default_factory=dict)
+    """The processing block of the run file, as written: the forward model does not read it
+    (the application validates it into :class:`processing.settings.ProcessingSettings`, and
+    processing reads it back from a run's /Provenance); only the image's range limits, which
+    bound the ground truth's counting volume (:func:`processing.base.counting_volume.image_range_of`)."""
 
     _source_path: Path | None = PrivateAttr(default=None)
     _resolved_text: str | None = PrivateAttr(default=None)
@@ -294,7 +297,7 @@ class Scene(ConfigModel):
         file : str or Path
             Names the data in messages.
         marks : dict, optional
-            Line number per key path (from :func:`processing.config.read_yaml`).
+            Line number per key path (from :func:`processing.base.config.read_yaml`).
         source_path : Path, optional
             The file the scene belongs to: mesh paths resolve relative to its folder.
 
@@ -420,8 +423,8 @@ def _split_key_path(path: str) -> list:
 
 def json_schema() -> dict:
     """JSON Schema of the scene file (aliases, i.e. the keys a file uses), with each key's
-    description (its docstring: made in a process that reads them, processing.config.FIELD_DOCS)."""
-    from processing.config import FIELD_DOCS
+    description (its docstring: made in a process that reads them, processing.base.config.FIELD_DOCS)."""
+    from processing.base.config import FIELD_DOCS
     if not FIELD_DOCS:
         import os
         import subprocess

@@ -10,7 +10,7 @@ from pydantic import Field, model_validator
 from acoustics.scene.motion_spec import PlatformMotionSpec
 from acoustics.sonar import preset
 from acoustics.sonar.arrays import ElementArray
-from processing.config import AngleDeg, ConfigModel, Count, PositiveCount, PositiveReal, Real, Vec3
+from processing.base.config import AngleDeg, ConfigModel, Count, PositiveCount, PositiveReal, Real, Vec3
 
 __all__ = ["PoseSpec", "ElementSpec", "LineSpec", "ArraySpec", "ReceiverSpec", "PresetGeometry",
            "LevelsSpec", "SonarSpec"]

@@ -9,7 +9,7 @@ from pydantic import Discriminator, Field, Tag, model_validator
 
 from acoustics.scene.meshes_spec import MeshTargetSpec
 from acoustics.scene.motion_spec import SwimSpec
-from processing.config import (AngleDeg, AngleRangeDeg, ConfigModel, Count, NonNegativeReal,
+from processing.base.config import (AngleDeg, AngleRangeDeg, ConfigModel, Count, NonNegativeReal,
                                PositiveReal, Real, Vec3)
 
 __all__ = ["UnitTS", "FixedTS", "RayleighTS", "SwimbladderTS", "Backscatter", "PointTarget", "CuboidPopulation",

@@ -1,4 +1,4 @@
-"""What simulating (and processing) a scene will cost, estimated from the scene alone.
+"""What simulating a scene will cost, estimated from the scene alone.
 
 Upper bounds, computed before anything is allocated, so that ``abacus scene check`` can say "ok"
 only for a scene that will run, and every command refuses up front — naming the key to change —
@@ -11,23 +11,22 @@ instead of dying half-way with an allocation error. The terms, in bytes:
                   facets (reverberation rays) and mesh-target facets, ≈ 200 bytes each, and with
                   Huygens directivity one complex number per scatterer and element;
 ``meshes``        faces x 100 (vertices, faces, normals, Embree's copy);
-``processing``    per thread of the chain (at most 4): a chunk of 8 pings of compressed spectra,
-                  interpolated channels and complex images;
 ``writing``       the samples again (the NetCDF writer copies each variable once);
-``images``        only when stored (``--images native|full``);
-``runtime``       thread pools, FFT plans, xarray objects: 100 MB; ``figures`` 200 MB when drawn.
+``runtime``       thread pools, FFT plans, xarray objects: 100 MB.
+
+The processing chain's terms come from :func:`processing.chain.chain_memory_terms`, the
+figures' from the application; callers pass them as ``extra_terms``.
 """
 from __future__ import annotations
 
 import math
 
-from processing.resources import Estimate
+from processing.base.resources import Estimate
 
 __all__ = ["estimate_scene", "mesh_faces", "population_bound", "reverberation_rays"]
 
 _SCATTERER_BYTES = 200.0
 _FACE_BYTES = 100.0
-_CHUNK_PINGS = 8
 
 
 def population_bound(pop) -> int:
@@ -74,23 +73,24 @@ def reverberation_rays(scene, sonar) -> int:
 
 #: what any run holds besides its arrays: thread pools, FFT plans, xarray objects (measured ≈ 80 MB)
 _RUNTIME_BYTES = 100e6
-#: drawing the figures of ``abacus run`` (matplotlib canvases, fonts; measured ≈ 150 MB)
-_FIGURES_BYTES = 200e6
 
 
-def estimate_scene(scene, *, pings: int | None = None, images: str = "none",
-                   process: bool = True, write: bool = True, figures: bool = False) -> Estimate:
-    """Memory and output of simulating (and, with ``process``, imaging and counting) a scene.
+def estimate_scene(scene, *, pings: int | None = None, write: bool = True,
+                   extra_terms=()) -> Estimate:
+    """Memory and output of simulating a scene (and what the caller adds: the processing chain,
+    stored images, figures).
 
     Parameters
     ----------
     scene : Scene
     pings : int, optional
         Default the scene's ``pings.count``.
-    images : {"none", "native", "full"}
-        Whether images are stored in the output.
-    process, write, figures : bool
-        Include the processing chain, the dataset writer, the figures.
+    write : bool
+        Include the dataset writer.
+    extra_terms : sequence of (str, float)
+        What the caller's own stages hold at once (bytes), e.g. processing's
+        (:func:`processing.chain.chain_memory_terms`); a term named ``"stored images"`` counts
+        towards the output too.
 
     Returns
     -------
@@ -117,28 +117,8 @@ def estimate_scene(scene, *, pings: int | None = None, images: str = "none",
     meshes = faces * _FACE_BYTES + rays * 64.0
     terms = [("samples", samples), ("synthesis per ping", synthesis), ("scatterers per ping", scatterers),
              ("meshes and rays", meshes), ("runtime", _RUNTIME_BYTES)]
-    if figures:
-        terms.append(("figures", _FIGURES_BYTES))
-    groups = 2 if scene.sonar.mode == "interferometric" else 1
-    im = scene.processing.image
-    rows = n_s * im.interpolation
-    if im.range_m is not None:   # only the image's range window is kept
-        dr = scene.medium.sound_speed_m_s / (2 * scene.sampling.rate_hz)
-        rows = min(rows, int((im.range_m[1] - im.range_m[0]) / dr * im.interpolation) + 2)
-    beams = im.n_beams or 64
-    if process:
-        from processing.chain import default_workers
-        nfft = 1.1 * (n_s + pulse)
-        chunk = min(_CHUNK_PINGS, n_p)
-        per_thread = chunk * (n_ch * nfft * (1 + scene.processing.image.interpolation) * 16
-                              + groups * rows * beams * 16)
-        threads = min(default_workers(), max(1, math.ceil(n_p / chunk)))
-        terms.append(("processing", threads * per_thread))
-    stored = 0.0
-    if images != "none":
-        r = rows if images == "full" else n_s
-        stored = float(n_p) * groups * r * beams * 8
-        terms.append(("stored images", stored))
+    terms += list(extra_terms)
+    stored = sum(b for name, b in extra_terms if name == "stored images")
     if write:
         terms.append(("writing", samples))
     memory = sum(b for _, b in terms)

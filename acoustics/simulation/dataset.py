@@ -1,4 +1,4 @@
-"""Assemble a simulation into the data contract of processing.dataset (SONAR-netCDF4 flavour)."""
+"""Assemble a simulation into the data contract of processing.base.dataset (SONAR-netCDF4 flavour)."""
 from __future__ import annotations
 
 import datetime as _dt
@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import xarray as xr
 
-from processing.dataset import CONVENTIONS, ELEMENT_GROUP, TRUTH_GROUP, split_complex
+from processing.base.dataset import CONVENTIONS, ELEMENT_GROUP, TRUTH_GROUP, split_complex
 
 from acoustics.frames import cartesian_to_spherical
 from acoustics.sonar.calibration import sonar_calibration
@@ -59,7 +59,7 @@ def _ping_times(scene, pings):
 
 
 def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.DataTree:
-    """The DataTree of one simulation run (see processing.dataset for the layout)."""
+    """The DataTree of one simulation run (see processing.base.dataset for the layout)."""
     sonar, medium, pulse = setup.sonar, setup.medium, setup.pulse
     s = scene.sampling
     ping_time = _ping_times(scene, pings)

@@ -48,7 +48,7 @@ def simulate(scene, *, pings=None, seed: int | None = None, progress=None):
     Returns
     -------
     xarray.DataTree
-        The data contract of DESIGN.md (processing.dataset): per-element samples as float32
+        The data contract of DESIGN.md (processing.base.dataset): per-element samples as float32
         ``backscatter_r``/``backscatter_i`` (channel, ping_time, range_sample, beam) in /Sonar/Beam_group1, geometry, pulse and
         replica, environment, ground truth, provenance with the resolved scene and stage times.
 

@@ -17,7 +17,7 @@ from acoustics.sonar.build import Sonar, build_sonar
 from acoustics.sonar.cache import array_key, per_geometry
 from acoustics.sonar.pulse import Pulse
 from acoustics.synthesis.arrivals import EchoModel
-from processing.counting import CountingVolume, counting_volume
+from processing.base.counting_volume import CountingVolume, counting_volume, image_range_of
 
 __all__ = ["Setup", "make_setup", "counting_volume_of"]
 
@@ -78,7 +78,7 @@ class Setup:
 
     @property
     def counting_volume(self) -> CountingVolume:
-        """The default counting volume (processing's definition, :mod:`processing.counting`)."""
+        """The default counting volume (processing's definition, :mod:`processing.base.counting_volume`)."""
         return counting_volume(tx_beamwidth_az_rad=self.tx_beamwidth_az_rad,
                                tx_beamwidth_el_rad=self.tx_beamwidth_el_rad,
                                image_range_m=self.counting_range_m)
@@ -106,10 +106,13 @@ def make_setup(scene, log: StageLog | None = None) -> Setup:
     tx = sonar.transmitter
     az, el = _tx_beamwidths(array_key(tx), tx, medium.sound_speed_m_s,
                             scene.signal.center_frequency_hz)
-    rng_m = scene.processing.image.range_m
-    if rng_m is None:
-        c, s = medium.sound_speed_m_s, scene.sampling
-        rng_m = (c * s.time_offset_s / 2, c * (s.time_offset_s + s.samples / s.rate_hz) / 2)
+    c, s = medium.sound_speed_m_s, scene.sampling
+    window_m = (c * s.time_offset_s / 2, c * (s.time_offset_s + s.samples / s.rate_hz) / 2)
+    try:
+        rng_m = image_range_of(scene.processing, window_m)
+    except ValueError as exc:
+        from acoustics.scene.errors import SceneError
+        raise SceneError(f"{scene.source_path or scene.name}: {exc}") from None
     platform = None
     if scene.sonar.motion is not None:
         from acoustics.sonar.platform import PlatformMotion
@@ -126,7 +129,7 @@ def make_setup(scene, log: StageLog | None = None) -> Setup:
 
 def counting_volume_of(setup: Setup, positions_sonar_m) -> np.ndarray:
     """True where a sonar-frame position lies in the default counting volume (the one
-    processing uses: :func:`processing.counting.counting_volume` of the transmitter's 3 dB
+    processing uses: :func:`processing.base.counting_volume.counting_volume` of the transmitter's 3 dB
     beamwidths and the image's range limits).
 
     Parameters

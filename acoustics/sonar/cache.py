@@ -69,7 +69,7 @@ def _load(path: Path):
 
 
 def _store(path: Path, value) -> None:
-    from processing.atomic import write_bytes_atomic
+    from processing.base.atomic import write_bytes_atomic
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         if isinstance(value, dict):

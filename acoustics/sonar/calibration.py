@@ -14,7 +14,7 @@ with volume backscattering coefficient s_v, the mean intensity of the image cell
     Ψ(θ_b) = ∫ Φ(θ) |B_b(θ)|² dθ,    Φ(θ) = ∫ |E_t(θ, φ)|² |D(θ, φ)|² cos φ dφ,
 
 where L_r is the range integral of the compressed pulse's intensity and B_b the receive beam;
-both belong to the processing (:mod:`processing.echo_integration`), which never sees the arrays.
+both belong to the processing (:mod:`processing.backscatter.echo_integration`), which never sees the arrays.
 What belongs to the sonar — G and the two-way elevation width Φ(θ) — is computed here once per
 run and recorded; a recorded dataset supplies the same two numbers from its calibration.
 """

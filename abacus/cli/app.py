@@ -1,0 +1,265 @@
+"""The ``abacus`` command line. The only layer (with the tests) that joins acoustics and
+processing as peers; every error a user can cause ends in one message and a documented exit
+status (0 ok, 1 internal error — traceback in a log —, 2 bad input or option, 3 too large for
+the memory or disk limits, 5 the machine refused a write, 130 interrupted, 143 terminated),
+never a traceback, never a half-written output.
+
+One module per command (``abacus/cli/<command>.py``), each with ``add_parser(sub)`` and
+``command(args)``; this module builds the parser and is the error boundary.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import warnings
+from pathlib import Path
+
+__all__ = ["main", "build_parser", "COMMANDS"]
+
+#: sub-commands in the order ``abacus --help`` lists them
+COMMANDS = ("run", "scene", "beams", "simulate", "image", "count", "track", "sv", "convert", "experiment", "view")
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"warning: {message}", file=sys.stderr)
+
+
+def _version() -> str:
+    from acoustics import __version__
+    return f"abacus {__version__}"
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a bad option as one line (what is wrong and where help is), status 2."""
+
+    def error(self, message):
+        self.exit(2, f"error: {self.prog}: {message} (see `{self.prog} --help`)\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="abacus", description="The abacus command line: simulate "
+                                "the ABACUS multibeam sonar in a ray-traced scene and process its "
+                                "echoes into images, detections and counts.")
+    p.add_argument("--version", action="version", version=_version())
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
+    for name in COMMANDS:
+        importlib.import_module(f"abacus.cli.{name}").add_parser(sub)
+    return p
+
+
+#: exit statuses (docs/reliability.md)
+EXIT_OK, EXIT_INTERNAL, EXIT_USAGE, EXIT_RESOURCES, EXIT_IO = 0, 1, 2, 3, 5
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
+
+
+class _Terminated(BaseException):
+    """SIGTERM, raised in the main thread like KeyboardInterrupt for SIGINT."""
+
+
+def _log_dir():
+    from acoustics.sonar.cache import cache_dir
+    folder = cache_dir()
+    if folder is None:
+        import tempfile
+        return Path(tempfile.gettempdir()) / "abacus-logs"
+    return folder / "logs"
+
+
+def _log_traceback(exc) -> str:
+    """Write the traceback of an unexpected error to a log file; return where (or why not)."""
+    import datetime
+    import os
+    import traceback
+    try:
+        folder = _log_dir()
+        folder.mkdir(parents=True, exist_ok=True)
+        stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+        path = folder / f"abacus-{stamp}-{os.getpid()}.log"
+        path.write_text("abacus " + " ".join(sys.argv[1:]) + "\n\n"
+                        + "".join(traceback.format_exception(exc)))
+        return str(path)
+    except OSError as log_exc:
+        return f"(the log could not be written: {log_exc.strerror})"
+
+
+def _exit_now(code: int, message: str | None = None):
+    """Leave at once: temporaries removed, streams flushed, no interpreter finalisation (a
+    finaliser could wait forever on a lock an interrupted writer still holds)."""
+    import os
+
+    from processing.base.atomic import remove_active
+    if "abacus.cli.figure_worker" in sys.modules:   # it may be writing into a temporary
+        sys.modules["abacus.cli.figure_worker"].stop_all()
+    remove_active()
+    if message:
+        print(message, file=sys.stderr)
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
+
+
+# the signal this process has received, as (exit status, word): a KeyboardInterrupt raised
+# inside C code that swallows it (matplotlib's drawing does) surfaces as an unrelated error
+# with no trace of the signal; the interrupt still decides how the process ends
+_RECEIVED: list = []
+
+
+def _install_signal_handlers():
+    """SIGINT raises KeyboardInterrupt and SIGTERM _Terminated in the main thread; a second
+    signal, or 5 s without the first one having ended the process, exits at once."""
+    import signal
+    import threading
+
+    def watchdog(code, message):
+        timer = threading.Timer(5.0, _exit_now, args=(code, message))
+        timer.daemon = True
+        timer.start()
+
+    state = {"seen": False}
+
+    def handler(signum, frame):
+        code = EXIT_INTERRUPTED if signum == signal.SIGINT else EXIT_TERMINATED
+        if state["seen"]:
+            _exit_now(code, "interrupted")
+        state["seen"] = True
+        _RECEIVED.append((code, "interrupted" if signum == signal.SIGINT else "terminated"))
+        watchdog(code, "interrupted")
+        raise KeyboardInterrupt if signum == signal.SIGINT else _Terminated()
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, handler)
+        signal.signal(signal.SIGTERM, handler)
+        sys.unraisablehook = _unraisable_ends_an_interrupt(sys.unraisablehook)
+
+
+def _unraisable_ends_an_interrupt(default_hook):
+    """A hook for exceptions Python can only print and drop (raised in a finaliser, a GC
+    callback): one of ours from a signal — the handler raised it while a ``__del__`` ran —
+    still ends the command as that interrupt, at once, instead of a traceback printed and the
+    command going on (seen once in the reliability probes: SIGINT during an experiment)."""
+    def hook(unraisable):
+        if _RECEIVED and unraisable.exc_type is not None and \
+                issubclass(unraisable.exc_type, (KeyboardInterrupt, _Terminated)):
+            _exit_now(*_RECEIVED[0])
+        default_hook(unraisable)
+    return hook
+
+
+def _signal_cause(exc):
+    """(exit status, word) when ``exc`` was caused by an interrupt or termination, else None."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if isinstance(exc, KeyboardInterrupt):
+            return EXIT_INTERRUPTED, "interrupted"
+        if isinstance(exc, _Terminated):
+            return EXIT_TERMINATED, "terminated"
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
+def _quiet_threads():
+    """Helper threads that wait asleep and do not run for nothing, unless the user chose.
+
+    - ``OMP_WAIT_POLICY=PASSIVE``: the compiled kernels' threads (numba's OpenMP layer, GNU
+      libgomp) otherwise spin for ≈ 300 000 turns after each parallel loop, on cores the figure
+      helper and the FFT workers want. Measured on `abacus run default` (2 cores, 5
+      interleaved pairs): 6.9 → 5.9 CPU-s and 4.34 → 3.76 s with plots, 2.85 → 2.81 s without.
+    - ``OPENBLAS_NUM_THREADS=1``: abacus' matrix products are small (elements × directions);
+      OpenBLAS' second thread made none of them faster and spun beside them: the cold beam
+      table 2.37 s either way, 4.40 → 2.35 CPU-s (a cold run 11.6 → 9.2 CPU-s); a warm
+      `abacus run default` (2 cores, 6 interleaved pairs) 5.94 → 5.70 CPU-s with plots,
+      3.48 → 3.23 without, its wall time unchanged within the noise. Parallel work is the
+      processing chain's threads' and the kernels'.
+
+    Set for every command run from the command line (not for :func:`main` called with
+    ``argv`` inside another program), before numpy or libgomp load (each reads its setting
+    once); inherited by the command's helper processes and local workers."""
+    import os
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
+def main(argv=None) -> int:
+    """Run one ``abacus`` command; every error a user can cause ends as one line on stderr and
+    a documented exit status, never a traceback.
+
+    ``argv`` None: the process' own command line (``abacus ...``, ``python -m acoustics``), which
+    ends with the command."""
+    if argv is None:     # the process is the command's: its environment is ours to set
+        _quiet_threads()
+    code = _command(argv)
+    if argv is None:
+        # the process ends here, its outputs closed and in place: tearing down its ≈ 200 000
+        # objects (mostly modules') would cost 0.3–0.8 s of every command, for nothing
+        _exit_now(code)
+    return code
+
+
+def _command(argv) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)   # --help and --version end here, before any heavy import
+    _install_signal_handlers()
+    try:
+        def loaded(*errors):
+            # an error class whose module was never imported cannot have been raised: the
+            # classes are looked up when an error arrives, so that no command waits for
+            # their modules before it starts (xarray, pydantic: ≈ 0.5 s, which `abacus run`
+            # spends with its figure helper already importing matplotlib beside it)
+            # (a module still being imported by another thread may lack its class yet)
+            found = (getattr(sys.modules.get(module), name, None) for module, name in errors)
+            return tuple(cls for cls in found if cls is not None)
+
+        def user_errors():
+            return loaded(("processing.base.config", "ConfigError"), ("processing.base.dataset", "DatasetError"),
+                          ("processing.detection.noise", "NoiseEstimateError"),
+                          ("abacus.cli.common", "UsageError"),
+                          ("abacus.experiment", "ExperimentError"),
+                          ("acoustics.paths.meshes", "MeshError"))
+        warnings.showwarning = _show_warning
+        try:
+            return int(args.func(args) or 0)
+        except loaded(("processing.base.resources", "ResourceError")) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return EXIT_RESOURCES
+        except user_errors() as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return EXIT_USAGE
+        except BrokenPipeError:
+            raise
+        except OSError as exc:   # the machine refused: disk full, permission, read-only
+            what = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+            print(f"error: {exc.strerror or exc.__class__.__name__}{what}: nothing was left "
+                  f"half-written", file=sys.stderr)
+            return EXIT_IO
+        except MemoryError:
+            print("error: out of memory (the estimate did not hold: please report it); nothing "
+                  "was left half-written", file=sys.stderr)
+            return EXIT_RESOURCES
+    except KeyboardInterrupt:
+        _exit_now(EXIT_INTERRUPTED, "interrupted")
+    except _Terminated:
+        _exit_now(EXIT_TERMINATED, "terminated")
+    except BrokenPipeError:
+        # the reader of stdout went away (`abacus beams --json | head`): not an error of ours
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
+    except Exception as exc:  # a bug of ours: one line here, the traceback in a log
+        # a signal landing inside a compiled (numba) kernel surfaces as a SystemError whose
+        # cause is the KeyboardInterrupt / _Terminated our handlers raised: still a signal
+        cause = _signal_cause(exc) or (_RECEIVED[0] if _RECEIVED else None)
+        if cause is not None:
+            _exit_now(*cause)
+        where = _log_traceback(exc)
+        print(f"error: internal error ({exc.__class__.__name__}: {str(exc).splitlines()[0][:200] if str(exc) else ''}); "
+              f"the traceback is in {where} — please report it", file=sys.stderr)
+        return EXIT_INTERNAL
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

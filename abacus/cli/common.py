@@ -1,0 +1,138 @@
+"""What every command shares: the usage error, scene loading, ping lists, a progress bar."""
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+__all__ = ["UsageError", "load", "ping_list", "Progress", "default_scene_path", "check_output",
+           "add_output_options", "check_scene_resources", "prefetch"]
+
+
+#: drawing the figures of ``abacus run`` (matplotlib canvases, fonts; measured ≈ 150 MB)
+FIGURES_BYTES = 200e6
+
+
+class UsageError(Exception):
+    """A bad option or argument: printed as one line, exit status 2."""
+
+
+def default_scene_path() -> Path:
+    """The built-in default scene (shipped with the package)."""
+    from acoustics.scene.builtin import builtin_scene
+    return builtin_scene("default")
+
+
+def load(path):
+    """Load a run file (a scene file with its processing block), or a built-in scene by name
+    (``default``, ``two_targets``, ...)."""
+    from abacus.runfile import load_run
+    return load_run(path)
+
+
+def prefetch(*modules: str):
+    """Import ``modules`` on a background thread, for a later stage: the compiled kernels and
+    FFTs of the stage before release the interpreter, so the import runs in their shadow
+    instead of on the critical path. A module that fails to import here is left for the stage
+    itself to import, and to report."""
+    import threading
+
+    def load_all():
+        import importlib
+        for name in modules:
+            try:
+                importlib.import_module(name)
+            except Exception:   # the stage that needs it will say why
+                pass
+
+    threading.Thread(target=load_all, name="abacus-prefetch", daemon=True).start()
+
+
+class Progress:
+    """A one-line progress bar on stderr, only when stderr is a terminal."""
+
+    def __init__(self, label: str):
+        self.label = label
+        self.on = sys.stderr.isatty()
+
+    def __call__(self, done: int, total: int):
+        if not self.on:
+            return
+        width = 30
+        fill = int(width * done / max(total, 1))
+        end = "\n" if done >= total else ""
+        print(f"\r{self.label} [{'#' * fill}{'.' * (width - fill)}] {done}/{total}", end=end,
+              file=sys.stderr, flush=True)
+
+
+def ping_list(scene, n: int | None):
+    """Pings first .. first + n − 1 of the scene, or None (the scene's own) when n is None."""
+    if n is None:
+        return None
+    if n < 1:
+        raise UsageError(f"--pings must be >= 1, got {n}")
+    return range(scene.pings.first, scene.pings.first + n)
+
+
+def add_output_options(parser, *, overwrite: bool = True, memory: bool = True):
+    """``--overwrite`` and ``--max-memory GB``, shared by the commands that write and allocate."""
+    if overwrite:
+        parser.add_argument("--overwrite", action="store_true",
+                            help="replace an existing output (default: refuse)")
+    if memory:
+        parser.add_argument("--max-memory", type=float, metavar="GB",
+                            help="memory this command may use (default: $ABACUS_MAX_MEMORY_GB, else "
+                                 "half the machine's memory); larger runs are refused up front")
+
+
+def check_output(path, *, overwrite: bool, option: str = "-o", folder: bool = False) -> Path:
+    """The output path of a command, checked before any work: its folder exists, it is not an
+    input's twin, and it is replaced only with ``--overwrite``.
+
+    Raises
+    ------
+    UsageError
+    """
+    p = Path(path)
+    if str(path).strip() == "":
+        raise UsageError(f"{option}: give a file name")
+    parent = p.parent
+    if not parent.exists():
+        raise UsageError(f"{option} {p}: the folder {parent} does not exist (create it first)")
+    if not parent.is_dir():
+        raise UsageError(f"{option} {p}: {parent} is not a folder")
+    if p.exists() or p.is_symlink():
+        if not overwrite:
+            raise UsageError(f"{option} {p}: exists; choose another name, or --overwrite to replace it")
+        if folder and p.exists() and not p.is_dir():
+            raise UsageError(f"{option} {p}: is a file, expected a folder")
+        if not folder and p.is_dir() and p.suffix != ".zarr":
+            raise UsageError(f"{option} {p}: is a folder, expected a file")
+    if not os.access(parent, os.W_OK):
+        raise UsageError(f"{option} {p}: the folder {parent} is not writable")
+    return p
+
+
+def check_scene_resources(scene, args, *, pings=None, images="none", process=True, output=None,
+                          figures=False):
+    """Refuse a scene whose estimated memory or output exceeds the limits (before any work)."""
+    from acoustics.simulation.budget import estimate_scene
+    from processing.base.resources import check_resources
+    extra = []
+    if figures:
+        extra.append(("figures", FIGURES_BYTES))
+    if process:
+        from abacus.runfile import settings_of
+        from acoustics.sonar.build import build_sonar
+        from processing.chain import chain_memory_terms
+        s = scene.sampling
+        n = int(scene.pings.count if pings is None else pings)
+        extra += chain_memory_terms(
+            settings_of(scene), pings=n, channels=int(build_sonar(scene).n_channels),
+            samples=int(s.samples), pulse_samples=scene.signal.duration_s * s.rate_hz,
+            sample_spacing_m=scene.medium.sound_speed_m_s / (2 * s.rate_hz),
+            groups=2 if scene.sonar.mode == "interferometric" else 1, images=images)
+    est = estimate_scene(scene, pings=pings, extra_terms=extra)
+    check_resources(est, what=f"scene '{scene.name}'", output=output,
+                    max_memory_gb=getattr(args, "max_memory", None))
+    return est

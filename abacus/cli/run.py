@@ -1,0 +1,217 @@
+"""``abacus run``: the main job — simulate, image, detect, locate, count; dataset and figures.
+
+The run folder appears complete or not at all: the numbers (dataset, detections, counts, the
+resolved scene, the beam table) are written into a hidden staging folder next to it, which is
+renamed into place when they are all there. Figure folders appear after the numbers are saved,
+each again staged and renamed, so a failure or Ctrl-C while drawing never costs the numbers and
+never leaves half a folder. The figures are drawn by a helper process
+(:mod:`abacus.cli.figure_worker`) beside this one: it starts importing matplotlib at once,
+draws the first ping's images (into a hidden scratch folder) while the pings are simulated and
+processed, and the detection and count figures (with forked copies of itself, on spare cores)
+while the numbers are written; this process only waits for them before placing their folders.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+import warnings
+from pathlib import Path
+
+from abacus.cli.common import (Progress, add_output_options, check_output, check_scene_resources,
+                                  load, ping_list, prefetch)
+
+_T0 = __import__("time").perf_counter()   # the command's own clock starts at its import
+
+HELP = "the main job: simulate, image, detect, locate, count"
+
+
+def add_parser(sub):
+    r = sub.add_parser("run", help=HELP)
+    r.add_argument("scene", help="scene file (YAML) or a built-in scene's name (e.g. default)")
+    r.add_argument("-o", "--output", help="output folder (default runs/<scene name>)")
+    r.add_argument("--pings", type=int, help="number of pings (default: the scene's)")
+    r.add_argument("--plots", action=argparse.BooleanOptionalAction, default=True,
+                   help="draw the figures (default; --no-plots: numbers only)")
+    r.add_argument("--images", choices=["none", "native", "full"], default="none",
+                   help="store the images in run.nc: none (default; they follow from the samples), "
+                        "native (at the data's range sampling) or full (every interpolated row)")
+    add_output_options(r)
+    r.set_defaults(func=command)
+
+
+def default_run_folder(name: str) -> Path:
+    """``runs/<name>``, the name reduced to letters, digits, '-', '_' and '.' (no separators,
+    no '..'), so a scene's name can never point outside ``runs/``."""
+    safe = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "scene"
+    return Path("runs") / safe
+
+
+def command(args) -> int:
+    import time
+    from contextlib import ExitStack
+
+    with ExitStack() as stack:
+        # the figure helper starts first of all: it imports matplotlib on the core that this
+        # process' own imports leave idle, then draws while this process computes
+        helper = None
+        if args.plots:
+            from abacus.cli.figure_worker import FigureWorker
+            helper = stack.enter_context(FigureWorker())
+        import processing
+        from abacus.cli.beams import beam_numbers
+        from acoustics.simulation.run import simulate
+        from acoustics.simulation.stages import StageLog
+        from processing.base.atomic import staged, write_text_atomic
+        from processing.base.dataset import write_tree
+        log = StageLog()
+        log.add("start", time.perf_counter() - _T0)
+        with log.stage("load"):
+            scene = load(args.scene)
+        if args.output:
+            outdir = check_output(args.output, overwrite=args.overwrite, folder=True)
+        else:   # runs/<name>: the one folder abacus creates for you
+            outdir = default_run_folder(scene.name)
+            outdir.parent.mkdir(exist_ok=True)
+            outdir = check_output(outdir, overwrite=args.overwrite, folder=True)
+        pings = ping_list(scene, args.pings)
+        check_scene_resources(scene, args, pings=len(pings) if pings else None, images=args.images,
+                              output=outdir / "run.nc", figures=args.plots)
+        figures = _RunFigures(stack, helper, outdir) if helper is not None else None
+        if figures is not None:
+            figures.beams(scene)
+        print(f"scene '{scene.name}' ({args.scene}): {scene.pings.count} ping(s), "
+              f"sha256 {scene.sha256()[:12]}")
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with log.stage("simulate"):
+                # scoring's assignment solver: 0.2 s of imports the processing would wait for
+                prefetch("scipy.optimize")
+                if figures is not None:
+                    # a ping depends on no other: the first one's images are drawn while the
+                    # run simulates and processes the others (one ping simulated twice, ≈ 1 %)
+                    first = pings[0] if pings is not None else scene.pings.first
+                    figures.images(simulate(scene, pings=[first]))
+                tree = simulate(scene, pings=pings, progress=Progress("simulate"))
+            with log.stage("process"):
+                tree = processing.count(tree, images=args.images)
+                result = processing.count_summary(tree)
+                if figures is not None:
+                    figures.counts(tree)      # drawn while the numbers are written
+        notes = run_notes(tree, caught)
+        result["summary"]["warnings"] = notes
+        with log.stage("write"), staged(outdir) as tmp:
+            tmp.mkdir()
+            write_tree(tree, tmp / "run.nc")
+            processing.write_csv(tree, tmp / "detections.csv")
+            write_text_atomic(tmp / "counts.json", json.dumps(result, indent=1))
+            write_text_atomic(tmp / "scene.resolved.yaml", scene.resolved_text())
+            write_text_atomic(tmp / "beams.json", json.dumps(beam_numbers(scene), indent=1))
+        print()
+        print(processing.format_counts(result))
+        made = "run.nc (dataset), detections.csv, counts.json, beams.json, scene.resolved.yaml"
+        if figures is not None:
+            with log.stage("figures"):
+                figures.place(scene)
+            made += ", images/, counts/, beams/"
+    for note in notes:
+        print(f"warning: {note}", file=sys.stderr)
+    print(f"\noutputs in {outdir}/: {made}")
+    print(f"time: {log.summary()} (start: interpreter and imports)")
+    return 0
+
+
+def run_notes(tree, caught) -> list[str]:
+    """What deserves a look in a run, once each: warnings raised while simulating and
+    processing (non-Rayleigh noise, a dataset without subarray B, ...) and ADC clipping."""
+    from processing.base.dataset import ELEMENT_GROUP
+    notes = []
+    for w in caught:
+        text = str(w.message)
+        if text not in notes:
+            notes.append(text)
+    clipped = tree[ELEMENT_GROUP].ds.get("adc_clipped_samples")
+    if clipped is not None and int(clipped.sum()):
+        n = int(clipped.sum())
+        pings = int((clipped.sum("beam") > 0).sum())
+        notes.append(f"the ADC clipped {n} samples in {pings} ping(s): echoes beyond its range "
+                     f"are distorted (sampling.adc.bits, sampling.adc.scale_counts)")
+    return notes
+
+
+def drawing_shares(n: int, drawers: int) -> list[slice]:
+    """``n`` figures split over at most ``drawers`` processes: consecutive slices, as even as
+    can be, the larger ones first (they go to the forked copies, which start first)."""
+    parts = max(1, min(n, drawers))
+    sizes = [n // parts + (k < n % parts) for k in range(parts)]
+    starts = [sum(sizes[:k]) for k in range(parts)]
+    return [slice(a, a + m) for a, m in zip(starts, sizes)]
+
+
+class _RunFigures:
+    """The run's figures, drawn by the helper process into scratch folders next to the run
+    folder (which does not exist until the numbers are saved) while this process computes and
+    writes; :meth:`place` moves each folder into the run folder, staged, once they are saved.
+    This process never imports matplotlib (≈ 1 s of its own)."""
+
+    def __init__(self, stack, helper, outdir: Path):
+        self._stack, self._helper, self._outdir = stack, helper, outdir
+        self._folders: dict = {}
+        self._beam_pngs = None       # the beam figures' PNGs, when the geometry cache has them
+
+    def _submit(self, name: str, *jobs):
+        """Send ``(job, data)`` pairs drawn into the scratch folder ``name``, together."""
+        from processing.base.atomic import scratch
+        if name not in self._folders:
+            # named so that any later write of the run folder removes it if this process is killed
+            folder = self._stack.enter_context(scratch(self._outdir.parent, f"{self._outdir.name}.{name}"))
+            self._folders[name] = (folder, [])
+        folder, tickets = self._folders[name]
+        tickets.extend(self._helper.submit_together([(job, data, folder) for job, data in jobs]))
+
+    def images(self, tree):
+        """images/: the image figures of the dataset's first ping."""
+        from abacus.figures.plots import image_figure_data
+        from processing.records import figure_images
+        self._submit("images", ("draw_image_figures", image_figure_data(figure_images(tree, [0]))))
+
+    def counts(self, tree):
+        """counts/: detections of the first three pings, and counts per ping."""
+        from abacus.cli.figure_worker import spare_drawers
+        from abacus.figures.plots import count_figure_data
+        n = tree["Processing/Counts"].sizes["ping_time"]
+        data = count_figure_data(tree, pings=range(min(n, 3)))
+        # these are drawn while the numbers are written and then waited for: split over every
+        # process that can draw at once (the helper and its forked copies, one per spare core),
+        # the larger shares first (the copies take them) and counts.png (half a ping's cost)
+        # last, with the helper's own share. Pings drawn by one process share one figure (made
+        # once, its data changed per ping; measured 0.29 CPU-s the first ping, 0.21 each next)
+        ds = data["detections"]
+        self._submit("counts", *[("draw_detection_figures", ds[s]) for s in
+                                 drawing_shares(len(ds), spare_drawers() + 1)],
+                     ("draw_counts_figure", data["counts"]))
+
+    def beams(self, scene):
+        """beams/: copied from the geometry cache, or drawn by the helper (and then cached)."""
+        from abacus.cli.beams import beam_cuts_of, cached_beam_figures
+        self._beam_pngs = cached_beam_figures(scene)
+        if self._beam_pngs is None:
+            self._submit("beams", ("plot_beam_figures", beam_cuts_of(scene)))
+
+    def place(self, scene):
+        """Wait for every drawing; each figure folder appears whole in the run folder."""
+        import os
+
+        from abacus.cli.beams import store_beam_figures, write_beam_figures
+        from processing.base.atomic import staged
+        if self._beam_pngs is not None:
+            with staged(self._outdir / "beams") as tmp:
+                write_beam_figures(self._beam_pngs, tmp)
+        for name, (folder, tickets) in self._folders.items():
+            for ticket in tickets:
+                self._helper.result(ticket)
+            if name == "beams":
+                store_beam_figures(scene, folder)     # the next run copies them
+            with staged(self._outdir / name) as tmp:
+                os.replace(folder, tmp)

@@ -1,0 +1,45 @@
+"""``abacus simulate``: a scene's per-element echoes into a dataset."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from abacus.cli.common import (Progress, UsageError, add_output_options, check_output,
+                                  check_scene_resources, load, ping_list)
+from acoustics.seeds import SEED_MAX
+
+HELP = "simulate a scene's per-element echoes into a dataset"
+
+
+def add_parser(sub):
+    m = sub.add_parser("simulate", help=HELP)
+    m.add_argument("scene", help="scene file (YAML) or a built-in scene's name")
+    m.add_argument("-o", "--output", required=True, help="output file (.nc) or folder (.zarr)")
+    m.add_argument("--pings", type=int, help="number of pings (default: the scene's)")
+    m.add_argument("--seed", type=int, help="seed (default: the scene's)")
+    m.add_argument("--format", choices=["netcdf", "zarr"], help="default from the suffix")
+    add_output_options(m)
+    m.set_defaults(func=command)
+
+
+def command(args) -> int:
+    from acoustics.simulation.run import simulate
+    from processing.base.dataset import ELEMENT_GROUP, write_tree
+    scene = load(args.scene)
+    out = check_output(args.output, overwrite=args.overwrite)
+    fmt = args.format or ("zarr" if out.suffix == ".zarr" else "netcdf")
+    if args.seed is not None and not 0 <= args.seed <= SEED_MAX:
+        raise UsageError(f"--seed must be an integer in [0, {SEED_MAX}], got {args.seed}")
+    pings = ping_list(scene, args.pings)
+    check_scene_resources(scene, args, pings=len(pings) if pings else None, process=False, output=out)
+    tree = simulate(scene, pings=pings, seed=args.seed,
+                    progress=Progress("simulate"))
+    write_tree(tree, out, fmt=fmt)
+    prov = tree["Provenance"].ds
+    n_p = tree[ELEMENT_GROUP].sizes["ping_time"]
+    print(f"wrote {out} ({fmt}): {n_p} ping(s); stages: "
+          + ", ".join(f"{s} {t:.2f} s" for s, t in zip(prov["stage"].values, prov["stage_seconds"].values)))
+    clipped = tree[ELEMENT_GROUP].ds.get("adc_clipped_samples")
+    if clipped is not None and int(clipped.sum()):
+        print(f"warning: the ADC clipped {int(clipped.sum())} samples", file=sys.stderr)
+    return 0

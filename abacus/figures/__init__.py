@@ -1,0 +1,2 @@
+"""Figures of the application: images, detections, counts, tracks and beam patterns (matplotlib,
+imported lazily)."""

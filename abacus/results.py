@@ -1,0 +1,173 @@
+"""An experiment's results on disk: one part per finished task, and the results dataset.
+
+A *part* holds what one task (one simulated ping, evaluated under one or more settings) returned:
+per-ping numbers per setting, the noise histogram, timings, notes and an optional PNG. Parts are
+written atomically, so a resumed experiment only ever sees whole ones. :func:`assemble_results`
+turns the parts into the results dataset (setting x ping) with the chapter-6 summaries; the
+orchestration (what to run, where) lives in :mod:`abacus.experiment`.
+"""
+from __future__ import annotations
+
+import hashlib
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from processing.base.atomic import write_bytes_atomic
+from abacus.evaluate import NOISE_BINS, PER_PING_KEYS
+
+__all__ = ["save_part", "load_part", "part_state", "PartError", "assemble_results"]
+
+
+class PartError(ValueError):
+    """A part that cannot be used: damaged (recompute it) or of another experiment."""
+
+
+def _digest(arrays: dict) -> str:
+    h = hashlib.sha256()
+    for k in sorted(arrays):
+        a = np.ascontiguousarray(arrays[k])
+        h.update(k.encode())
+        h.update(str(a.dtype).encode())
+        h.update(str(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def save_part(parts: Path, res: dict, *, experiment: str = "") -> Path:
+    """Write one task's result (``res`` from the task runner) as ``parts/<id>.npz``, atomically,
+    with the experiment's identity (a hash of its scenes, settings and sweep) and a checksum of
+    its contents."""
+    arrays = {f"pp_{k}": np.asarray(v) for k, v in res["per_ping"].items()}
+    arrays.update(noise_histogram=np.asarray(res["noise_histogram"]),
+                  seconds=np.asarray(res["seconds"]),
+                  stage_seconds=np.asarray(json.dumps(res["stage_seconds"])),
+                  notes=np.asarray(json.dumps(res["notes"])),
+                  figure=np.frombuffer(res["figure"], np.uint8),
+                  experiment=np.asarray(experiment))
+    buf = io.BytesIO()
+    np.savez(buf, checksum=np.asarray(_digest(arrays)), **arrays)
+    return write_bytes_atomic(Path(parts) / f"{res['id']}.npz", buf.getvalue())
+
+
+def load_part(path: Path, *, experiment: str | None = None) -> dict:
+    """One part as written by :func:`save_part`, verified.
+
+    Raises
+    ------
+    PartError
+        Unreadable, truncated, its checksum wrong (``damaged``), or written by another experiment
+        than ``experiment`` (``foreign``); ``PartError.args[1]`` says which.
+    """
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except Exception as exc:
+        raise PartError(f"{path.name}: unreadable ({exc.__class__.__name__})", "damaged") from None
+    checksum = str(arrays.pop("checksum", ""))
+    if not checksum or _digest(arrays) != checksum:
+        raise PartError(f"{path.name}: its checksum does not match its contents", "damaged")
+    if experiment is not None and str(arrays.get("experiment", "")) != experiment:
+        raise PartError(f"{path.name}: written by another experiment", "foreign")
+    try:
+        return {"per_ping": {k[3:]: arrays[k] for k in arrays if k.startswith("pp_")},
+                "noise_histogram": arrays["noise_histogram"], "seconds": float(arrays["seconds"]),
+                "stage_seconds": json.loads(str(arrays["stage_seconds"])),
+                "notes": json.loads(str(arrays["notes"])), "figure": arrays["figure"].tobytes()}
+    except (KeyError, ValueError) as exc:
+        raise PartError(f"{path.name}: incomplete ({exc})", "damaged") from None
+
+
+def part_state(path: Path, experiment: str) -> str:
+    """``"ok"``, ``"missing"``, ``"damaged"`` or ``"foreign"`` for a part file."""
+    if not path.exists():
+        return "missing"
+    try:
+        load_part(path, experiment=experiment)
+    except PartError as exc:
+        return exc.args[1]
+    return "ok"
+
+
+def assemble_results(*, labels, values, pings, tasks, parts: Path, attrs: dict,
+                     experiment: str | None = None) -> xr.Dataset:
+    """The results dataset of an experiment from its parts.
+
+    Parameters
+    ----------
+    labels : sequence of str, length n_settings
+        Setting labels ("scene", "threshold=600", ...).
+    values : sequence of float, length n_settings
+        Sweep value of each setting (NaN for the scene as written).
+    pings : sequence of int, length n_pings
+    tasks : sequence of (task id, point index, ping, setting indices)
+    parts : Path
+        Folder of the parts.
+    attrs : dict
+        Root attributes (scene text and hash, sweep, settings, timing).
+
+    Returns
+    -------
+    xarray.Dataset
+        Per-ping numbers (setting, ping), the noise histogram (ping, noise_bin), task times,
+        and per-setting means, standard deviations and the TS estimate.
+    """
+    n_set, n_p = len(labels), len(pings)
+    col = {p: i for i, p in enumerate(pings)}
+    data = {k: np.full((n_set, n_p), np.nan) for k in PER_PING_KEYS}
+    hist = np.zeros((n_p, NOISE_BINS.size - 1))
+    seconds = np.zeros(n_p)
+    stages: dict = {}
+    notes: dict = {}
+    for tid, j, p, idx in tasks:
+        part = load_part(Path(parts) / f"{tid}.npz", experiment=experiment)
+        for k in PER_PING_KEYS:
+            data[k][idx, col[p]] = part["per_ping"][k]
+        if j == 0:
+            hist[col[p]] = part["noise_histogram"]
+        seconds[col[p]] += part["seconds"]
+        for s, t in part["stage_seconds"].items():
+            stages[s] = stages.get(s, 0.0) + t
+        for n in part["notes"]:
+            notes[n] = notes.get(n, 0) + 1
+    na = {"nan_means": "does not apply to this setting or ping (no truth, no noise estimate, no "
+                        "calibration, nothing counted)"}
+    ds = xr.Dataset(
+        {k: xr.DataArray(v, dims=("setting", "ping"), attrs=dict(na)) for k, v in data.items()},
+        coords={"setting": np.arange(n_set),
+                "setting_label": ("setting", np.array(list(labels), dtype=str)),
+                "sweep_value": ("setting", np.array(list(values), float)),
+                "ping": np.asarray(pings, np.int64),
+                "noise_bin_edge": ("noise_bin_edge", NOISE_BINS)})
+    ds["noise_histogram"] = xr.DataArray(hist, dims=("ping", "noise_bin"), attrs={
+        "long_name": "counts of |I| / sigma_hat over the noise cells, per ping (setting 0)",
+        "bin_edges": "noise_bin_edge"})
+    ds["task_seconds"] = xr.DataArray(seconds, dims="ping", attrs={"units": "s"})
+    units = {"density_per_m3": "m^-3", "true_density_per_m3": "m^-3", "threshold_counts": "ADC counts",
+             "noise_sigma_counts": "ADC counts", "s_v_per_m": "m^-1", "sigma_bs_m2": "m^2",
+             "true_sigma_bs_m2": "m^2"}
+    for k, u in units.items():
+        ds[k].attrs["units"] = u
+    # per setting: the chapter-6 summaries
+    for k in ("error_before", "error_after", "count_before", "count_after", "true_in_volume",
+              "density_per_m3", "true_density_per_m3", "threshold_counts"):
+        ds[f"{k}_mean"] = ds[k].mean("ping")
+        ds[f"{k}_std"] = ds[k].std("ping")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sv, dens = ds["s_v_per_m"].sum("ping", skipna=True), ds["density_per_m3"].sum("ping")
+        ds["ts_estimate_db"] = 10 * np.log10(xr.where(dens > 0, sv / dens, np.nan).where(sv > 0))
+        ds["ts_true_db"] = 10 * np.log10(ds["true_sigma_bs_m2"].mean("ping", skipna=True))
+    ds["ts_estimate_db"].attrs = {"units": "dB re 1 m^2",
+                                  "long_name": "10 log10(sum s_v / sum counted density) over the pings"}
+    ds["ts_true_db"].attrs = {"units": "dB re 1 m^2",
+                              "long_name": "10 log10 of the mean sigma_bs of the true targets in the volume"}
+    for k in ds.data_vars:   # summaries of not-applicable values stay not applicable
+        if ds[k].dtype.kind == "f" and k not in ("noise_histogram", "task_seconds"):
+            ds[k].attrs.setdefault("nan_means", na["nan_means"])
+    ds.attrs.update({**attrs, "stage_seconds_json": json.dumps(stages),
+                     "notes": "; ".join(f"{n} ({c} task{'s' if c > 1 else ''})"
+                                        for n, c in sorted(notes.items()))})
+    return ds

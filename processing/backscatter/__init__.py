@@ -1,0 +1,1 @@
+"""Backscatter: calibration, echo integration, Sv/MVBS/NASC, single targets and their TS."""

@@ -1,0 +1,269 @@
+"""Calibrated volume backscattering per image cell: Sv(r, θ), its gridded means (MVBS) and NASC.
+
+Every cell of a calibrated image (processing/backscatter/calibration.py) is inverted with the sonar equation
+that :mod:`processing.backscatter.echo_integration` integrates over the counting span,
+
+    s_v(r, θ_b) = (|I|² − N) r² 10^(α r / 5) / (G² L_r Ψ_b)          (m⁻¹),
+    Sv = 10 log10 s_v                                                  (dB re 1 m⁻¹),
+
+N the noise power of a cell, L_r = ∫ |h(r)|² dr the range extent of the compressed pulse's
+intensity and Ψ_b the beam's two-way equivalent solid angle (for a single-beam echosounder,
+L_r Ψ_b is the familiar cτ/2 · ψ: MacLennan & Simmonds, *Fisheries Acoustics*, §2.4; echopype's
+``compute_Sv`` uses the same TVG, 20 log r + 2αr). Gridded means are taken in the linear
+domain (MVBS, as echopype's ``compute_MVBS`` and Echoview's grids do), and the nautical area
+scattering coefficient of a range layer is
+
+    NASC = 4π 1852² ∫ s_v dr            (m² nmi⁻²; MacLennan, Fernandes & Dalen 2002),
+
+integrated along each beam: for a vertical beam it is the NASC of the depth layer; for a beam at
+θ from the vertical the depth layer's NASC is NASC · cos θ. Noise subtraction makes a cell's s_v
+negative where there is nothing but noise: kept in the linear products (clipping would bias the
+means) and NaN in dB, where ``nan_means`` says so.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["sv_cells", "sv_db", "mean_volume_backscatter", "nasc", "backscatter", "SV_GROUP",
+           "write_mvbs_csv", "write_nasc_csv"]
+
+NMI_M = 1852.0
+
+
+def sv_cells(magnitude, range_m, *, gain_counts_m: float, absorption_db_per_m: float,
+             range_width_m: float, solid_angle_sr, noise_power=0.0) -> np.ndarray:
+    """s_v of every image cell.
+
+    Parameters
+    ----------
+    magnitude : array_like, shape (n_pings, n_range, n_beams)
+        |I| of a calibrated image (counts).
+    range_m : array_like, shape (n_range,)
+    gain_counts_m, absorption_db_per_m : float
+        The calibration's G and α (processing.backscatter.calibration.Calibration).
+    range_width_m : float
+        L_r (m), :func:`processing.backscatter.calibration.range_energy_width_m`.
+    solid_angle_sr : array_like, shape (n_beams,)
+        Ψ_b (sr), :func:`processing.backscatter.calibration.beam_solid_angle_sr`.
+    noise_power : float or array_like, shape (n_pings,)
+        Mean noise intensity of a cell (counts²), 2σ² for a Rayleigh σ; 0 without noise.
+
+    Returns
+    -------
+    ndarray, shape (n_pings, n_range, n_beams)
+        s_v (m⁻¹); may be slightly negative in noise-only cells.
+    """
+    mag = np.asarray(magnitude, float)
+    r = np.asarray(range_m, float)
+    psi = np.asarray(solid_angle_sr, float)
+    scale = (r**2 * 10.0 ** (absorption_db_per_m * r / 5.0))[:, None] / (
+        gain_counts_m**2 * range_width_m * psi[None, :])
+    n = np.asarray(noise_power, float).reshape(-1, 1, 1) if np.ndim(noise_power) else float(noise_power)
+    return (mag**2 - n) * scale[None]
+
+
+def sv_db(s_v) -> np.ndarray:
+    """Sv = 10 log10 s_v (dB re 1 m⁻¹), same shape; NaN where s_v ≤ 0 (noise only)."""
+    s = np.asarray(s_v, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(s > 0, 10.0 * np.log10(np.where(s > 0, s, 1.0)), np.nan)
+
+
+def mean_volume_backscatter(s_v, range_m, *, range_bin_m: float, ping_bin: int):
+    """MVBS: s_v averaged (linearly) over bins of range and of consecutive pings, per beam.
+
+    Parameters
+    ----------
+    s_v : array_like, shape (n_pings, n_range, n_beams)
+    range_m : array_like, shape (n_range,)
+        Increasing ranges (m).
+    range_bin_m : float
+        Bin height (m); bins start at the first range.
+    ping_bin : int
+        Pings per bin (the last bin may hold fewer).
+
+    Returns
+    -------
+    mean_s_v : ndarray, shape (n_ping_bins, n_range_bins, n_beams)
+        Mean s_v of the cells in each bin (m⁻¹); NaN for a bin with no cell.
+    range_edges_m : ndarray, shape (n_range_bins + 1,)
+    ping_edges : ndarray of int, shape (n_ping_bins + 1,)
+        Ping rows; bin k holds rows ping_edges[k] ≤ p < ping_edges[k + 1].
+    """
+    s = np.asarray(s_v, float)
+    r = np.asarray(range_m, float)
+    if range_bin_m <= 0 or int(ping_bin) < 1:
+        raise ValueError("range_bin_m must be positive and ping_bin at least 1")
+    n_p = s.shape[0]
+    n_rb = max(1, int(np.ceil((r[-1] - r[0]) / range_bin_m + 1e-9)))
+    edges = r[0] + range_bin_m * np.arange(n_rb + 1)
+    which = np.minimum(((r - r[0]) / range_bin_m).astype(int), n_rb - 1)
+    pe = np.r_[np.arange(0, n_p, int(ping_bin)), n_p]
+    out = np.full((pe.size - 1, n_rb, s.shape[2]), np.nan)
+    cells = np.bincount(which, minlength=n_rb)
+    for k in range(pe.size - 1):
+        block = s[pe[k]:pe[k + 1]].sum(axis=0)                       # (n_range, n_beams)
+        sums = np.zeros((n_rb, s.shape[2]))
+        np.add.at(sums, which, block)
+        count = cells * (pe[k + 1] - pe[k])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out[k] = np.where(count[:, None] > 0, sums / np.maximum(count, 1)[:, None], np.nan)
+    return out, edges, pe
+
+
+def nasc(s_v, range_m, layers_m) -> np.ndarray:
+    """Nautical area scattering coefficient of range layers, per ping and beam.
+
+    Parameters
+    ----------
+    s_v : array_like, shape (n_pings, n_range, n_beams)
+    range_m : array_like, shape (n_range,)
+        Uniformly spaced ranges (m).
+    layers_m : array_like, shape (n_layers, 2)
+        [start, stop] of each layer (m).
+
+    Returns
+    -------
+    ndarray, shape (n_pings, n_layers, n_beams)
+        NASC = 4π 1852² Σ s_v Δr over the cells of each layer (m² nmi⁻²); 0 for a layer that
+        holds no cell.
+    """
+    s = np.asarray(s_v, float)
+    r = np.asarray(range_m, float)
+    dr = float(np.median(np.diff(r))) if r.size > 1 else 0.0
+    lay = np.asarray(layers_m, float).reshape(-1, 2)
+    out = np.zeros((s.shape[0], lay.shape[0], s.shape[2]))
+    for i, (a, b) in enumerate(lay):
+        rows = (r >= a) & (r < b)
+        out[:, i] = 4 * np.pi * NMI_M**2 * s[:, rows].sum(axis=1) * dr
+    return out
+
+
+SV_GROUP = "Processing/Sv"
+
+
+def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int = 10,
+                layers_m=None, image_group: str | None = None):
+    """Sv products of a dataset: MVBS on a (ping bin, range bin, beam) grid and NASC of range
+    layers per ping and beam, written to /Processing/Sv.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+        A dataset with samples and a calibration (/Sonar/calibration_gain, …); imaged here.
+    settings : ProcessingSettings, dict or path, optional
+        Image settings and the detector's noise estimate (subtracted: 2σ² per cell).
+    range_bin_m : float
+        MVBS bin height (m).
+    ping_bin : int
+        Pings per MVBS bin.
+    layers_m : array_like, shape (n_layers, 2), optional
+        NASC layers [start, stop] (m); default one layer, the image's range.
+    image_group : str, optional
+        Subarray whose image is used (default: the detector's).
+
+    Returns
+    -------
+    xarray.DataTree
+        A copy with /Processing/Sv: ``Sv_mean`` (dB re 1 m⁻¹, NaN where the bin holds noise
+        only) and ``s_v_mean`` (m⁻¹) on (ping_bin, range_bin, beam); ``NASC`` (m² nmi⁻²) on
+        (ping_time, layer, beam); bin edges and beam angles as coordinates.
+    """
+    import xarray as xr
+
+    from processing.imaging.beamforming import SubarrayGeometry
+    from processing.backscatter.calibration import beam_solid_angle_sr, calibration_of, range_energy_width_m
+    from processing.imaging.compression import RangeFilter
+    from processing.base.dataset import DatasetError, read_record
+    from processing.detection.detect import noise_fit
+    from processing.detection.noise import NoiseEstimateError
+    from processing.records import image, images_of, resolve_settings
+    st = resolve_settings(tree, settings)
+    group = image_group or st.detect.image_group
+    cal = calibration_of(tree)                  # names what is missing
+    imaged = image(tree, st)
+    im = images_of(imaged)
+    if group not in im.groups:
+        raise DatasetError(f"no image of subarray {group!r} (has {', '.join(im.groups)})")
+    g = list(im.groups).index(group)
+    mags = np.abs(im.image[:, g])
+    rec = read_record(tree)
+    rf = RangeFilter.design(rec.replica, n_samples=rec.samples.shape[-1], rate_hz=rec.rate_hz,
+                            bandwidth_hz=rec.bandwidth_hz, range_window=st.image.range_window)
+    geo = SubarrayGeometry(rec.element_position_m[rec.image_groups[group]], st.image.spatial_window)
+    l_r = range_energy_width_m(rf, rec.sound_speed_m_s)
+    psi = beam_solid_angle_sr(cal, geo, im.beam_angle_rad, rec.wavelength_m)
+    sigma = 0.0
+    if st.detect.needs_noise or st.detect.noise.source != "image":
+        try:
+            sigma = noise_fit(mags, st.detect, im.range_m, im.beam_angle_rad, im.interpolation).sigma
+        except NoiseEstimateError:
+            sigma = 0.0
+    s_v = sv_cells(mags, im.range_m, gain_counts_m=cal.gain_counts_m,
+                   absorption_db_per_m=cal.absorption_db_per_m, range_width_m=l_r,
+                   solid_angle_sr=psi, noise_power=2 * sigma**2)
+    grid, r_edges, p_edges = mean_volume_backscatter(s_v, im.range_m, range_bin_m=range_bin_m,
+                                                     ping_bin=ping_bin)
+    layers = np.asarray(layers_m if layers_m is not None else [[im.range_m[0], im.range_m[-1] + 1e-9]],
+                        float).reshape(-1, 2)
+    area = nasc(s_v, im.range_m, layers)
+    beams = np.degrees(im.beam_angle_rad)
+    ds = xr.Dataset(
+        {"Sv_mean": (("ping_bin", "range_bin", "beam"), sv_db(grid)),
+         "s_v_mean": (("ping_bin", "range_bin", "beam"), grid),
+         "NASC": (("ping_row", "layer", "beam"), area),
+         "range_bin_start_m": ("range_bin", r_edges[:-1]), "range_bin_stop_m": ("range_bin", r_edges[1:]),
+         "ping_bin_first_row": ("ping_bin", p_edges[:-1]), "ping_bin_last_row": ("ping_bin", p_edges[1:] - 1),
+         "layer_start_m": ("layer", layers[:, 0]), "layer_stop_m": ("layer", layers[:, 1]),
+         "beam_angle_deg": ("beam", beams)},
+        attrs={"image_group": group, "noise_sigma_counts": float(sigma),
+               "range_energy_width_m": l_r, "range_bin_m": float(range_bin_m), "ping_bin": int(ping_bin)})
+    ds["Sv_mean"].attrs.update(units="dB re 1 m-1", nan_means="noise only (s_v ≤ 0 after noise subtraction)")
+    ds["s_v_mean"].attrs["units"] = "m-1"
+    ds["NASC"].attrs.update(units="m2 nmi-2", long_name="4π 1852² ∫ s_v dr along the beam over the layer")
+    out = tree.copy()
+    out[SV_GROUP] = xr.DataTree(ds)
+    return out
+
+
+def _write_rows(path, header, rows):
+    import csv
+    from pathlib import Path
+
+    from processing.base.atomic import staged
+    path = Path(path)
+    with staged(path) as tmp, open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        for r in rows:
+            w.writerow(["" if isinstance(x, float) and not np.isfinite(x) else
+                        (f"{x:.9g}" if isinstance(x, float) else x) for x in r])
+    return path
+
+
+def write_mvbs_csv(tree, path):
+    """One row per MVBS cell of /Processing/Sv (columns close to Echoview's integration-by-cells
+    export: Interval, Ping_S, Ping_E, Layer, Range_start, Range_stop (m), Beam_angle (deg),
+    Sv_mean (dB re 1 m⁻¹, empty where the cell holds noise only), s_v_mean (m⁻¹)); atomic."""
+    ds = tree[SV_GROUP].ds
+    sv, lin = ds["Sv_mean"].values, ds["s_v_mean"].values
+    rows = []
+    for i in range(sv.shape[0]):
+        for j in range(sv.shape[1]):
+            for b in range(sv.shape[2]):
+                rows.append([i, int(ds["ping_bin_first_row"][i]), int(ds["ping_bin_last_row"][i]), j,
+                             float(ds["range_bin_start_m"][j]), float(ds["range_bin_stop_m"][j]),
+                             float(ds["beam_angle_deg"][b]), float(sv[i, j, b]), float(lin[i, j, b])])
+    return _write_rows(path, ["Interval", "Ping_S", "Ping_E", "Layer", "Range_start", "Range_stop",
+                              "Beam_angle", "Sv_mean", "s_v_mean"], rows)
+
+
+def write_nasc_csv(tree, path):
+    """One row per (ping, layer, beam) of /Processing/Sv: Ping, Layer, Range_start, Range_stop
+    (m), Beam_angle (deg), NASC (m² nmi⁻²); atomic."""
+    ds = tree[SV_GROUP].ds
+    area = ds["NASC"].values
+    rows = [[p, k, float(ds["layer_start_m"][k]), float(ds["layer_stop_m"][k]),
+             float(ds["beam_angle_deg"][b]), float(area[p, k, b])]
+            for p in range(area.shape[0]) for k in range(area.shape[1]) for b in range(area.shape[2])]
+    return _write_rows(path, ["Ping", "Layer", "Range_start", "Range_stop", "Beam_angle", "NASC"], rows)
