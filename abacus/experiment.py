@@ -29,7 +29,7 @@ from processing.base.atomic import write_bytes_atomic, write_text_atomic
 from processing.base.dataset import write_dataset
 from processing.base.resources import usable_cores
 from abacus.results import assemble_results, load_part, save_part
-from abacus.runfile import settings_of
+from abacus.runfile import resolve_processing, settings_of
 
 __all__ = ["Sweep", "parse_sweep", "ExperimentError", "run_experiment", "experiment_plan"]
 
@@ -130,6 +130,8 @@ class Point:
 
 def experiment_plan(scene, sweep: Sweep | None):
     """The settings of an experiment: the scene as written, then one per sweep value."""
+    # every processing key present, so a sweep may set any of them
+    scene = resolve_processing(scene)
     points = [Point("scene", float("nan"), scene, settings_of(scene))]
     if sweep is None:
         return points
