@@ -4,13 +4,14 @@ Works from the data contract alone (:mod:`processing.base.dataset`), so it runs 
 and recorded data; it never imports ``acoustics``. Public surface (docs/api.md; imported on first
 use, so ``import processing`` is cheap)::
 
-    image(tree, settings=None) -> DataTree     # pulse compression, beamforming, interferometry
+    image(tree, settings=None) -> DataTree     # (tree: a DataTree or a file's path) pulse compression, beamforming, interferometry
     detect(tree, settings=None) -> DataTree    # thresholds, peaks, 3-D location
     count(tree, settings=None) -> DataTree     # counts, density, scores against the truth
     images_of(tree) -> Images                  # the images as arrays
     detections_of(tree) -> xarray.Dataset      # one row per detection
     counts_of(tree) -> xarray.Dataset          # one row per ping
     track(tree, settings=None) -> DataTree     # fish tracks across pings, scored against the truth
+    sv(tree, settings=None, ...) -> DataTree   # calibrated Sv: MVBS grid and NASC (/Processing/Sv)
     tracks_of(tree) -> xarray.Dataset          # one row per track, and per track point
     open_tree(path), write_tree(tree, path)    # the dataset I/O (atomic writes)
     ProcessingSettings, load_settings(path)
@@ -34,6 +35,7 @@ _API = {
     "ProcessingSettings": "processing.settings", "ImageSettings": "processing.settings",
     "load_settings": "processing.settings",
     "track": "processing.tracking.tracks", "tracks_of": "processing.tracking.tracks",
+    "sv": "processing.backscatter.sv", "as_tree": "processing.base.dataset",
 }
 
 __all__ = sorted(_API)

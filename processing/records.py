@@ -154,6 +154,8 @@ def image(tree: xr.DataTree, settings=None, *, storage: str = "full") -> xr.Data
     >>> im.image.shape        # (pings, image groups A/B, range cells, beams)  # doctest: +SKIP
     (1, 2, 2276, 32)
     """
+    from processing.base.dataset import as_tree
+    tree = as_tree(tree)
     st = resolve_settings(tree, settings)
     rec = _record(tree)
     try:
@@ -311,6 +313,8 @@ def detect(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.Data
     >>> det = processing.detections_of(processing.detect(tree))          # doctest: +SKIP
     >>> det[["ping", "range_m", "azimuth_rad", "elevation_rad"]].to_dataframe()  # doctest: +SKIP
     """
+    from processing.base.dataset import as_tree
+    tree = as_tree(tree)
     from processing.chain import detect_record
     from processing.base.dataset import open_tree
     from processing.detection.noise import NoiseEstimateError
@@ -446,6 +450,8 @@ def count(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.DataT
     >>> processing.counts_of(tree)["count_after"].values                    # doctest: +SKIP
     array([2, 2, 2])
     """
+    from processing.base.dataset import as_tree
+    tree = as_tree(tree)
     from processing.detection.detect import score_all
     st = resolve_settings(tree, settings)
     if (PROCESSING_GROUP not in tree.children or "Detections" not in tree[PROCESSING_GROUP].children):

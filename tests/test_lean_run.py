@@ -24,36 +24,6 @@ def _python(code: str, cwd) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def test_simulate_count_and_write_never_import_dask(tmp_path):
-    """Dask is installed (for experiments) but a run makes no Dask arrays: xarray must not
-    import dask, dask.array or distributed to find that out."""
-    got = _python(
-        "import json, sys, warnings; warnings.simplefilter('ignore')\n"
-        "import acoustics, processing\n"
-        "tree = processing.count(acoustics.simulate(acoustics.load_scene('two_targets'), pings=range(2)))\n"
-        "processing.write_tree(tree, 'run.nc')\n"
-        "t = processing.open_tree('run.nc'); processing.count(t)\n"
-        "print(json.dumps({m: m in sys.modules for m in ('dask', 'dask.array', 'distributed')}))",
-        tmp_path)
-    assert got == {"dask": False, "dask.array": False, "distributed": False}
-
-
-def test_xarray_still_recognises_dask_arrays_once_dask_is_imported(tmp_path):
-    """The lazy probe answers 'not Dask' only while Dask is not loaded; afterwards xarray's own
-    answer holds: a chunked variable stays lazy and computes the right values."""
-    pytest.importorskip("dask.array")
-    got = _python(
-        "import json, numpy as np, warnings; warnings.simplefilter('ignore')\n"
-        "import processing.base.dataset, xarray as xr\n"
-        "plain = xr.DataArray(np.arange(6.0), dims='x')\n"           # probed before Dask
-        "import dask.array as da\n"
-        "lazy = xr.DataArray(da.arange(6.0, chunks=2), dims='x')\n"
-        "print(json.dumps({'chunked': lazy.chunks is not None, 'sum': float((lazy * 2).sum()),"
-        " 'plain_chunks': plain.chunks is None}))",
-        tmp_path)
-    assert got == {"chunked": True, "sum": 30.0, "plain_chunks": True}
-
-
 def test_writing_restores_the_netcdf_chunk_cache(tmp_path):
     import netCDF4
 

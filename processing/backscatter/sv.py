@@ -169,6 +169,8 @@ def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int 
         only) and ``s_v_mean`` (m⁻¹) on (ping_bin, range_bin, beam); ``NASC`` (m² nmi⁻²) on
         (ping_time, layer, beam); bin edges and beam angles as coordinates.
     """
+    from processing.base.dataset import as_tree
+    tree = as_tree(tree)
     import xarray as xr
 
     from processing.imaging.beamforming import SubarrayGeometry
@@ -224,6 +226,10 @@ def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int 
     out = tree.copy()
     out[SV_GROUP] = xr.DataTree(ds)
     return out
+
+
+#: the public name (``processing.sv``): calibrated Sv products of a dataset
+sv = backscatter
 
 
 def _write_rows(path, header, rows):

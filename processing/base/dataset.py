@@ -29,14 +29,11 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from processing.base import lean_xarray
 from processing.base.atomic import staged
-
-lean_xarray.install()     # before any variable is wrapped: no Dask import to answer "is it Dask?"
 
 __all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "ping_indices", "TRUTH_GROUP",
            "write_tree", "write_dataset", "check_finite", "NAN_MEANS", "open_tree", "tree_pings", "source_of", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
-           "read_record", "beam_samples", "LEGACY_ELEMENT_GROUP"]
+           "read_record", "beam_samples", "LEGACY_ELEMENT_GROUP", "as_tree"]
 
 FORMATS = ("netcdf", "zarr")
 CONVENTIONS = "CF-1.7, SONAR-netCDF4-1.0, ACDD-1.3"
@@ -235,6 +232,30 @@ def open_tree(path: str | Path, *, max_memory_gb: float | None = None,
 def _first_line(exc) -> str:
     text = str(exc).strip().splitlines()
     return (text[0][:200] if text else "")
+
+
+def as_tree(data) -> xr.DataTree:
+    """A dataset given as a tree, or as the path of a file :func:`open_tree` opens.
+
+    Parameters
+    ----------
+    data : xarray.DataTree, str or Path
+
+    Returns
+    -------
+    xarray.DataTree
+
+    Raises
+    ------
+    DatasetError
+        A path that cannot be opened (named), or neither a tree nor a path.
+    """
+    if isinstance(data, xr.DataTree):
+        return data
+    if isinstance(data, (str, Path)):
+        return open_tree(data)
+    raise DatasetError(f"expected a dataset (xarray.DataTree) or the path of one, not "
+                       f"{type(data).__name__}")
 
 
 def source_of(tree: xr.DataTree) -> str:

@@ -91,6 +91,8 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     processing.base.dataset.DatasetError
         The dataset has no interferometric elevation (tracking needs 3-D positions).
     """
+    from processing.base.dataset import as_tree
+    tree = as_tree(tree)
     from processing.backscatter.single_targets import single_target_table
     from processing.tracking.filters import measurement_covariance, track_detections
     st = resolve_settings(tree, settings)
