@@ -67,7 +67,7 @@ def evaluate(tree: xr.DataTree, settings_list) -> dict:
         noise cells of the first setting (zeros without a noise estimate);
         ``notes``: list of str.
     """
-    from processing import records as products
+    from processing import pipeline as products
     settings_list = [products.resolve_settings(tree, s) for s in settings_list]
     rec = read_record(tree, source=source_of(tree))
     n_pings = rec.samples.shape[0]

@@ -25,8 +25,8 @@ _API = {
     "image": "processing.records", "detect": "processing.records", "count": "processing.records",
     "images_of": "processing.records", "detections_of": "processing.records",
     "counts_of": "processing.records", "count_summary": "processing.records",
-    "format_counts": "processing.records", "volume_of": "processing.records",
-    "write_csv": "processing.records", "resolve_settings": "processing.records",
+    "format_counts": "processing.records", "volume_of": "processing.pipeline",
+    "write_csv": "processing.records", "resolve_settings": "processing.pipeline",
     "open_tree": "processing.base.dataset", "write_tree": "processing.base.dataset",
     "read_record": "processing.base.dataset", "DatasetError": "processing.base.dataset",
     "Images": "processing.imaging.images",
@@ -35,7 +35,7 @@ _API = {
     "ProcessingSettings": "processing.settings", "ImageSettings": "processing.settings",
     "load_settings": "processing.settings",
     "track": "processing.tracking.tracks", "tracks_of": "processing.tracking.tracks",
-    "sv": "processing.backscatter.sv", "as_tree": "processing.base.dataset",
+    "sv": "processing.backscatter.sv", "RecordChain": "processing.pipeline", "as_tree": "processing.base.dataset",
 }
 
 __all__ = sorted(_API)

@@ -1,4 +1,6 @@
-"""Processing products in the dataset (the /Processing group) and the public entry points.
+"""The public entry points over datasets: each runs the chain in memory
+(:class:`processing.pipeline.RecordChain`) and writes its products into a copy of the tree
+(the /Processing group), or reads them back from one (``images_of``, ``detections_of``, ...).
 
 ``processing.image(tree, settings)`` returns a new tree with /Processing holding the complex
 images per image group, the interferometric phase and elevation, the settings used and the
@@ -15,58 +17,20 @@ import numpy as np
 import xarray as xr
 
 from processing.base.atomic import staged
-from processing.base.config import ConfigError, dump_yaml, parse_yaml, validate_file
-from processing.base.dataset import (ELEMENT_GROUP, DatasetError, complex_of, ping_indices, read_record, source_of,
-                      split_complex)
+from processing.base.config import dump_yaml, parse_yaml, validate_file
+from processing.base.dataset import (ELEMENT_GROUP, DatasetError, complex_of, read_record, source_of,
+                                     split_complex)
 from processing.chain import record_pings
 from processing.imaging.images import Images, form_images
-from processing.settings import ImageSettings, ProcessingSettings, load_settings
+from processing.pipeline import (AFTER_KEYS, DETECTIONS_GROUP, PROCESSING_GROUP, noise_band_of,
+                                 resolve_settings, volume_of)
+from processing.settings import ImageSettings, ProcessingSettings
 
 __all__ = ["PROCESSING_GROUP", "resolve_settings", "image", "images_of", "figure_images", "detect", "count",
-           "volume_of", "detections_of", "counts_of", "write_csv", "count_summary", "format_counts"]
+           "volume_of", "detections_of", "counts_of", "write_csv", "count_summary", "format_counts",
+           "with_detections", "noise_band_of"]
 
-PROCESSING_GROUP = "Processing"
-#: what only interferometry (the elevation) gives: NaN in normal and combined mode
-AFTER_KEYS = ("count_after", "density_per_m3", "occupied_density_per_m3", "error_after",
-              "hits_after", "misses_after", "false_alarms_after", "shared_cell_misses")
-DETECTIONS_GROUP = "Processing/Detections"
 COUNTS_GROUP = "Processing/Counts"
-
-
-def resolve_settings(tree: xr.DataTree | None, settings=None) -> ProcessingSettings:
-    """The processing settings to use (see module docstring)."""
-    if isinstance(settings, ProcessingSettings):
-        return settings
-    if isinstance(settings, ImageSettings):
-        return ProcessingSettings.model_validate({"image": settings.model_dump(by_alias=True)})
-    if isinstance(settings, (str, Path)):
-        return load_settings(settings)
-    if isinstance(settings, dict):
-        return validate_file(ProcessingSettings, settings, file="<settings>")
-    if settings is not None:
-        raise TypeError(f"settings must be ProcessingSettings, ImageSettings, a dict or a YAML "
-                        f"path, not {type(settings).__name__}")
-    if tree is not None and "Provenance" in tree.children:
-        text = tree["Provenance"].ds.attrs.get("scene_text", "")
-        if text:
-            data, _ = parse_yaml(text, source="/Provenance scene_text")
-            section = data.get("processing") if isinstance(data, dict) else None
-            if section is not None:
-                try:
-                    return validate_file(ProcessingSettings, section,
-                                         file="/Provenance scene_text (processing section)")
-                except ConfigError:
-                    raise
-    return ProcessingSettings()
-
-
-def noise_band_of(tree) -> float | None:
-    """The receiver noise band (Hz) the dataset records (for the images' noise gain), or None."""
-    attrs = tree[ELEMENT_GROUP].ds.attrs
-    for key in ("noise_bandwidth_hz", "receiver_bandwidth_hz"):
-        if key in attrs:
-            return float(attrs[key])
-    return None
 
 
 #: what ``image``/``count`` may store of the images: nothing, the images at the data's own
@@ -231,53 +195,6 @@ def figure_images(tree: xr.DataTree, pings, settings=None) -> Images:
     return form_images(record_pings(rec, idx), st.image, noise_band_hz=noise_band_of(tree))
 
 
-def volume_of(tree: xr.DataTree, settings: ProcessingSettings, image_range_m=None):
-    """The counting volume of a dataset: the transmitter's 3 dB beam (from /Sonar) x the image
-    range (settings, else ``image_range_m``, else what /Processing recorded), with the overrides
-    of ``settings.count``."""
-    from processing.base.counting_volume import counting_volume
-    sonar = tree["Sonar"].ds if "Sonar" in tree.children else xr.Dataset()
-    cs = settings.count
-    need = []
-    for key, override in (("beamwidth_transmit_major", cs.azimuth_halfwidth),
-                          ("beamwidth_transmit_minor", cs.elevation_halfwidth)):
-        if key not in sonar and override is None:
-            need.append(key)
-    if need:
-        raise DatasetError(f"the counting volume needs /Sonar/{' and /Sonar/'.join(need)} (transmit "
-                           f"3 dB beamwidths, degrees) or count.azimuth_halfwidth_deg / "
-                           f"count.elevation_halfwidth_deg in the settings")
-    bw_az = np.radians(float(sonar["beamwidth_transmit_major"])) if "beamwidth_transmit_major" in sonar else 1.0
-    bw_el = np.radians(float(sonar["beamwidth_transmit_minor"])) if "beamwidth_transmit_minor" in sonar else 1.0
-    rng = settings.image.range_m
-    if rng is None:
-        rng = image_range_m
-    if rng is None:
-        pds = tree[PROCESSING_GROUP].ds
-        rng = (pds.attrs["image_range_m"] if "image_range_m" in pds.attrs
-               else (float(pds["image_range"][0]), float(pds["image_range"][-1])))
-    return counting_volume(tx_beamwidth_az_rad=bw_az, tx_beamwidth_el_rad=bw_el,
-                           image_range_m=rng, settings=cs)
-
-
-def pose_of(tree):
-    """The sonar's pose in the world frame, from /Platform.
-
-    Returns
-    -------
-    (position_m, rotation) or None
-        ``position_m`` shape (3,) (m, world frame: x forward, y starboard, z down) and
-        ``rotation`` shape (3, 3), columns the sonar axes in world coordinates; for a moving
-        platform one per ping: shapes (n_pings, 3) and (n_pings, 3, 3). None when the dataset
-        has no pose (sonar frame = world frame).
-    """
-    if "Platform" in tree.children and "sonar_rotation" in tree["Platform"].ds:
-        ds = tree["Platform"].ds
-        if "ping_sonar_rotation" in ds:
-            return (ds["ping_sonar_position"].values.astype(float),
-                    ds["ping_sonar_rotation"].values.astype(float))
-        return ds["sonar_position"].values.astype(float), ds["sonar_rotation"].values.astype(float)
-    return None
 
 
 def detect(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.DataTree:
@@ -313,42 +230,25 @@ def detect(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.Data
     >>> det = processing.detections_of(processing.detect(tree))          # doctest: +SKIP
     >>> det[["ping", "range_m", "azimuth_rad", "elevation_rad"]].to_dataframe()  # doctest: +SKIP
     """
-    from processing.base.dataset import as_tree
-    tree = as_tree(tree)
-    from processing.chain import detect_record
-    from processing.base.dataset import open_tree
-    from processing.detection.noise import NoiseEstimateError
-    st = resolve_settings(tree, settings)
-    rec = _record(tree)
-    band = noise_band_of(tree)
-    noise_mags = None
-    if st.detect.noise.source == "noise_file":
-        noise_rec = read_record(open_tree(st.detect.noise.file), source=str(st.detect.noise.file))
-        try:
-            ni = form_images(noise_rec, st.image, noise_band_hz=band)
-            noise_mags = np.abs(ni.image[:, ni.group_index(st.detect.image_group)])
-        except ValueError as exc:
-            raise DatasetError(f"{st.detect.noise.file}: {exc}") from None
+    from processing.pipeline import RecordChain
     if images not in IMAGE_STORAGE:
         raise ValueError(f"images must be one of {IMAGE_STORAGE}, got {images!r}")
-    # the attributes of the images (range axis, gains, resolution) from one ping
-    try:
-        first = form_images(record_pings(rec, slice(0, 1)), st.image, noise_band_hz=band)
-        volume = volume_of(tree, st, image_range_m=(float(first.range_m[0]), float(first.range_m[-1])))
-        keep = range(rec.samples.shape[0]) if images != "none" else ()
-        det, kept = detect_record(rec, st, volume, noise_band_hz=band, pose=pose_of(tree),
-                                  noise_magnitudes=noise_mags, keep_pings=keep)
-    except ValueError as exc:
-        if isinstance(exc, (NoiseEstimateError, DatasetError)):
-            raise
-        raise DatasetError(str(exc)) from None
+    chain = RecordChain(tree, settings)
+    return with_detections(chain, chain.detect(keep_images=images != "none"), images)
+
+
+def with_detections(chain, detected, images: str) -> xr.DataTree:
+    """A copy of the chain's tree with /Processing (the images' attributes, or the images) and
+    /Processing/Detections of ``detected``."""
+    tree, st = chain.tree, chain.settings
     out = tree.copy()
     ping_time = tree[ELEMENT_GROUP].ds["ping_time"].values
     if images != "none":
-        out[PROCESSING_GROUP] = xr.DataTree(images_dataset(kept, ping_time, st, storage=images))
+        out[PROCESSING_GROUP] = xr.DataTree(images_dataset(detected.images, ping_time, st, storage=images))
     elif PROCESSING_GROUP not in out.children or "image_r" not in out[PROCESSING_GROUP].ds:
-        out[PROCESSING_GROUP] = xr.DataTree(images_dataset(first, ping_time[:1], st, storage="none"))
-    out[DETECTIONS_GROUP] = xr.DataTree(_detections_dataset(det, st, volume, first))
+        out[PROCESSING_GROUP] = xr.DataTree(images_dataset(detected.first, ping_time[:1], st, storage="none"))
+    out[DETECTIONS_GROUP] = xr.DataTree(_detections_dataset(detected.detections, st, detected.volume,
+                                                            detected.first))
     return out
 
 
@@ -413,19 +313,6 @@ def _columns(table: xr.Dataset) -> dict:
     return {k: table[k].values for k in table.data_vars}
 
 
-def _truth(tree, ping_index):
-    from processing.base.dataset import TRUTH_GROUP
-    try:
-        gt = tree[TRUTH_GROUP].ds
-    except KeyError:
-        return None
-    index_of = {int(p): i for i, p in enumerate(ping_index)}
-    pings = gt["target_ping_index"].values.astype(int)
-    keep = np.array([p in index_of for p in pings], bool)
-    pos = np.stack([gt[f"target_{a}"].values for a in "xyz"], -1)[keep]
-    return {"ping": np.array([index_of[p] for p in pings[keep]], int), "position_m": pos}
-
-
 def count(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.DataTree:
     """Counts and density per ping, and scores against the truth when the dataset has it;
     runs :func:`detect` first if the dataset holds no detections.
@@ -450,42 +337,26 @@ def count(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.DataT
     >>> processing.counts_of(tree)["count_after"].values                    # doctest: +SKIP
     array([2, 2, 2])
     """
-    from processing.base.dataset import as_tree
-    tree = as_tree(tree)
-    from processing.detection.detect import score_all
-    st = resolve_settings(tree, settings)
-    if (PROCESSING_GROUP not in tree.children or "Detections" not in tree[PROCESSING_GROUP].children):
-        tree = detect(tree, st, images=images)
-    table = _columns(detections_of(tree))
-    volume = volume_of(tree, st)
+    from processing.pipeline import RecordChain
+    chain = RecordChain(tree, settings)
+    tree, st = chain.tree, chain.settings
+    if PROCESSING_GROUP in tree.children and "Detections" in tree[PROCESSING_GROUP].children:
+        detected = chain.detected()          # the detections the dataset holds, as a record
+    else:
+        if images not in IMAGE_STORAGE:
+            raise ValueError(f"images must be one of {IMAGE_STORAGE}, got {images!r}")
+        detected = chain.detect(keep_images=images != "none")
+        tree = with_detections(chain, detected, images)
+    res, occupied = chain.count(detected)
+    volume, layer, occupied_m3 = detected.volume, occupied["occupied_range_m"], occupied["occupied_volume_m3"]
     eg = tree[ELEMENT_GROUP].ds
-    ping_index = ping_indices(eg)
-    da = tree[DETECTIONS_GROUP].ds.attrs
-    if "range_resolution_m" not in da:   # written by an earlier abacus: the images' attributes
-        da = tree[PROCESSING_GROUP].ds.attrs
-    res = score_all(table, _truth(tree, ping_index), volume, len(ping_index),
-                    dr=float(da["range_resolution_m"]),
-                    dtheta=float(da["azimuth_resolution_rad"]), gate=st.count.gate_cells,
-                    unresolved=st.count.unresolved_cells)
-    # the density where the targets are: the range layer the run's located targets occupy
-    from processing.base.counting_volume import occupied_range
-    layer = occupied_range(table["range_m"][table["in_volume"]], volume)
-    occupied_m3 = volume.sector_volume_m3(layer) if layer is not None else 0.0
-    res["occupied_density_per_m3"] = (res["count_after"] / occupied_m3 if occupied_m3 > 0
-                                      else np.full(len(ping_index), np.nan))
-    interferometric = bool(tree[PROCESSING_GROUP].ds.attrs.get("interferometric", 1))
-    if not interferometric:
-        # no elevation, so nothing is located in 3-D: "after interferometry" does not exist
-        # (NaN, not a count of 0 that reads like an empty volume)
-        for k in AFTER_KEYS:
-            if k in res:
-                res[k] = np.full(len(ping_index), np.nan)
+    ping_index = chain.ping_index
     ds = xr.Dataset({k: xr.DataArray(v, dims="ping_time") for k, v in res.items()},
                     coords={"ping_time": eg["ping_time"].values,
                             "ping_index": ("ping_time", np.asarray(ping_index))},
                     attrs={"counting_volume_m3": volume.volume_m3, "gate_cells": st.count.gate_cells,
                            "has_truth": int("true_in_volume" in res),
-                           "occupied_range_m": list(layer) if layer is not None else [],
+                           "occupied_range_m": layer,
                            "occupied_volume_m3": occupied_m3})
     ds["density_per_m3"].attrs.update(units="m^-3", long_name="counted / counting volume: the "
                                       "density of the counting volume")

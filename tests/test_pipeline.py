@@ -18,7 +18,7 @@ import processing.chain as chain
 from processing.chain import detect_record, record_pings
 from processing.detection.detect import detect_all, fit_noise_cells, noise_cells
 from processing.imaging.images import form_images
-from processing.records import noise_band_of, pose_of, resolve_settings, volume_of
+from processing.pipeline import noise_band_of, pose_of, resolve_settings, volume_of
 
 from .conftest import SCENES
 

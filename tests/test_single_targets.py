@@ -11,7 +11,7 @@ import pytest
 
 import acoustics
 import processing
-from processing.backscatter.single_targets import single_target_table
+from processing.backscatter.target_table import single_target_table
 
 from .conftest import ROOT
 from .test_cli import abacus

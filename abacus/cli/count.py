@@ -38,7 +38,7 @@ def command(args) -> int:
     if csv is not None:
         processing.write_csv(tree, csv)
     if tcsv is not None:
-        from processing.backscatter.single_targets import write_single_targets_csv
+        from processing.backscatter.target_table import write_single_targets_csv
         write_single_targets_csv(tree, tcsv, args.settings)
     if plots is not None:
         from processing.base.atomic import staged

@@ -72,7 +72,7 @@ def track_figures(tree, outdir: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from processing.records import pose_of
+    from processing.pipeline import pose_of
     from processing.tracking.tracks import tracks_of
 
     outdir = Path(outdir)

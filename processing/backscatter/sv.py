@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from processing.base.dataset import DatasetError
+
 __all__ = ["sv_cells", "sv_db", "mean_volume_backscatter", "nasc", "backscatter", "SV_GROUP",
            "write_mvbs_csv", "write_nasc_csv"]
 
@@ -169,27 +171,24 @@ def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int 
         only) and ``s_v_mean`` (m⁻¹) on (ping_bin, range_bin, beam); ``NASC`` (m² nmi⁻²) on
         (ping_time, layer, beam); bin edges and beam angles as coordinates.
     """
-    from processing.base.dataset import as_tree
-    tree = as_tree(tree)
     import xarray as xr
 
-    from processing.imaging.beamforming import SubarrayGeometry
     from processing.backscatter.calibration import beam_solid_angle_sr, calibration_of, range_energy_width_m
-    from processing.imaging.compression import RangeFilter
-    from processing.base.dataset import DatasetError, read_record
     from processing.detection.detect import noise_fit
     from processing.detection.noise import NoiseEstimateError
-    from processing.records import image, images_of, resolve_settings
-    st = resolve_settings(tree, settings)
+    from processing.imaging.beamforming import SubarrayGeometry
+    from processing.imaging.compression import RangeFilter
+    from processing.pipeline import RecordChain
+    chain = RecordChain(tree, settings)
+    tree, st = chain.tree, chain.settings
     group = image_group or st.detect.image_group
     cal = calibration_of(tree)                  # names what is missing
-    imaged = image(tree, st)
-    im = images_of(imaged)
+    im = chain.images()
     if group not in im.groups:
         raise DatasetError(f"no image of subarray {group!r} (has {', '.join(im.groups)})")
     g = list(im.groups).index(group)
     mags = np.abs(im.image[:, g])
-    rec = read_record(tree)
+    rec = chain.record
     rf = RangeFilter.design(rec.replica, n_samples=rec.samples.shape[-1], rate_hz=rec.rate_hz,
                             bandwidth_hz=rec.bandwidth_hz, range_window=st.image.range_window)
     geo = SubarrayGeometry(rec.element_position_m[rec.image_groups[group]], st.image.spatial_window)

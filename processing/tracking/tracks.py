@@ -21,9 +21,8 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from processing.base.dataset import ELEMENT_GROUP, DatasetError, ping_indices
-from processing.records import (DETECTIONS_GROUP, PROCESSING_GROUP, detect, detections_of, pose_of,
-                       resolve_settings, volume_of)
+from processing.base.dataset import ELEMENT_GROUP, DatasetError
+from processing.pipeline import PROCESSING_GROUP, pose_of
 
 __all__ = ["TRACKS_GROUP", "track", "tracks_of", "track_summary", "format_tracks",
            "write_tracks_csv"]
@@ -91,25 +90,24 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     processing.base.dataset.DatasetError
         The dataset has no interferometric elevation (tracking needs 3-D positions).
     """
-    from processing.base.dataset import as_tree
-    tree = as_tree(tree)
-    from processing.backscatter.single_targets import single_target_table
+    from processing.pipeline import RecordChain
+    from processing.records import with_detections
     from processing.tracking.filters import measurement_covariance, track_detections
-    st = resolve_settings(tree, settings)
+    chain = RecordChain(tree, settings)
+    tree, st = chain.tree, chain.settings
     ts_ = st.track
-    if PROCESSING_GROUP not in tree.children or "Detections" not in tree[PROCESSING_GROUP].children:
-        tree = detect(tree, st)
-    if not bool(tree[PROCESSING_GROUP].ds.attrs.get("interferometric", 1)):
+    if PROCESSING_GROUP in tree.children and "Detections" in tree[PROCESSING_GROUP].children:
+        detected = chain.detected()          # the detections the dataset holds, as a record
+    else:
+        detected = chain.detect()
+        tree = with_detections(chain, detected, "none")
+    if not detected.interferometric:
         raise DatasetError("tracking needs 3-D positions: this dataset's mode has no "
                            "interferometric elevation (normal or combined mode)")
-    det = detections_of(tree)
-    da = tree[DETECTIONS_GROUP].ds.attrs
-    if "range_resolution_m" not in da:
-        da = tree[PROCESSING_GROUP].ds.attrs
-    rows = det["ping"].values.astype(int)
-    pidx = det["ping_index"].values.astype(int)
-    world = np.stack([det[f"world_{a}_m"].values for a in "xyz"], -1)
-    usable = ~det["elevation_clipped"].values if "elevation_clipped" in det else np.ones(len(rows), bool)
+    det = detected.table
+    rows = det["ping"].astype(int)
+    world = np.stack([det[f"world_{a}_m"] for a in "xyz"], -1).reshape(-1, 3)
+    usable = ~det["elevation_clipped"] if "elevation_clipped" in det else np.ones(len(rows), bool)
     env = tree["Environment"].ds
     c = float(env["sound_speed_indicative"].values)
     f0 = float(tree["Sonar"].ds["transmit_frequency_center"].values)
@@ -117,25 +115,24 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     poses = _Poses(tree)
     if baseline is None:
         raise DatasetError(f"tracking needs subarrays A and B in /{ELEMENT_GROUP}/element_subarray")
-    cov = measurement_covariance(det["range_m"].values, det["azimuth_rad"].values,
-                                 det["elevation_rad"].values, det["snr_db"].values,
-                                 range_resolution_m=float(da["range_resolution_m"]),
-                                 azimuth_resolution_rad=float(da["azimuth_resolution_rad"]),
+    cov = measurement_covariance(det["range_m"], det["azimuth_rad"], det["elevation_rad"],
+                                 det["snr_db"], range_resolution_m=detected.range_resolution_m,
+                                 azimuth_resolution_rad=detected.azimuth_resolution_rad,
                                  wavelength_m=c / f0, baseline_m=baseline,
                                  interference_db=ts_.interference_db,
                                  rotation=poses.rotation_of(rows))
-    st_table = single_target_table(tree, st)
-    ts_u, ts_c = st_table["ts_uncomp_db"].values, st_table["ts_comp_db"].values
+    targets = chain.single_targets(detected)
+    ts_u, ts_c = targets["ts_uncomp_db"], targets["ts_comp_db"]
+    single = np.asarray(targets["single_target"], bool)
     times = _ping_times_s(tree)
-    single = st_table["single_target"].values.astype(bool)
     keep = np.flatnonzero(usable & single & np.all(np.isfinite(world), axis=1))
     tracks = track_detections(rows[keep], times, world[keep], cov[keep], method=ts_.method,
                               gate_probability=ts_.gate_probability, accel_sd_m_s2=ts_.accel_sd_m_s2,
                               initial_speed_sd_m_s=ts_.initial_speed_sd_m_s, alpha=ts_.alpha,
                               beta=ts_.beta, confirm_hits=ts_.confirm_hits,
                               confirm_window=ts_.confirm_window, max_misses=ts_.max_misses)
-    volume = volume_of(tree, st)
-    ping_index_of_row = ping_indices(tree[ELEMENT_GROUP].ds)
+    volume = detected.volume
+    ping_index_of_row = chain.ping_index
     # flat track points
     p_track, p_row, p_det, p_pos, p_in = [], [], [], [], []
     for tr in tracks:

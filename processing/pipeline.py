@@ -1,0 +1,368 @@
+"""One chain in memory: a record's stages pass typed results, not the dataset tree.
+
+``image → detect → count``, ``detect → single targets → track`` and ``image → Sv`` run on one
+:class:`RecordChain`: the dataset is read once (:func:`processing.base.dataset.read_record`),
+the settings are parsed once, and each stage hands the next a typed result
+(:class:`~processing.imaging.images.Images`, :class:`Detected`, the counts as arrays). xarray
+appears only where a record is read (:meth:`RecordChain.detected` of a file that already holds
+detections) or written (the public facades in :mod:`processing.records`,
+:mod:`processing.tracking.tracks`, :mod:`processing.backscatter.sv`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from processing.base.counting_volume import CountingVolume
+from processing.base.dataset import (ELEMENT_GROUP, TRUTH_GROUP, DatasetError, as_tree, ping_indices,
+                                     read_record, source_of)
+from processing.base.config import parse_yaml, validate_file
+from processing.settings import ImageSettings, ProcessingSettings, load_settings
+
+__all__ = ["Detected", "RecordChain", "FLAG_COLUMNS", "resolve_settings", "noise_band_of",
+           "volume_of", "pose_of", "AFTER_KEYS"]
+
+PROCESSING_GROUP = "Processing"
+DETECTIONS_GROUP = "Processing/Detections"
+#: detection columns that are flags (stored as int8, passed on as bool)
+FLAG_COLUMNS = ("in_span", "in_volume", "elevation_clipped")
+
+
+#: what only interferometry (the elevation) gives: NaN in normal and combined mode
+AFTER_KEYS = ("count_after", "density_per_m3", "occupied_density_per_m3", "error_after",
+              "hits_after", "misses_after", "false_alarms_after", "shared_cell_misses")
+
+
+def resolve_settings(tree: xr.DataTree | None, settings=None) -> ProcessingSettings:
+    """The processing settings to use: ``settings`` (a :class:`ProcessingSettings`, its
+    ``image`` part, a dict, or a YAML file), else the ``processing`` section of the scene a
+    dataset's /Provenance records, else the defaults.
+
+    Raises
+    ------
+    processing.base.config.ConfigError
+        Settings the schema refuses, with the key path.
+    """
+    if isinstance(settings, ProcessingSettings):
+        return settings
+    if isinstance(settings, ImageSettings):
+        return ProcessingSettings.model_validate({"image": settings.model_dump(by_alias=True)})
+    if isinstance(settings, (str, Path)):
+        return load_settings(settings)
+    if isinstance(settings, dict):
+        return validate_file(ProcessingSettings, settings, file="<settings>")
+    if settings is not None:
+        raise TypeError(f"settings must be ProcessingSettings, ImageSettings, a dict or a YAML "
+                        f"path, not {type(settings).__name__}")
+    if tree is not None and "Provenance" in tree.children:
+        text = tree["Provenance"].ds.attrs.get("scene_text", "")
+        if text:
+            data, _ = parse_yaml(text, source="/Provenance scene_text")
+            section = data.get("processing") if isinstance(data, dict) else None
+            if section is not None:
+                return validate_file(ProcessingSettings, section,
+                                     file="/Provenance scene_text (processing section)")
+    return ProcessingSettings()
+
+
+def noise_band_of(tree) -> float | None:
+    """The receiver noise band (Hz) the dataset records (for the images' noise gain), or None."""
+    attrs = tree[ELEMENT_GROUP].ds.attrs
+    for key in ("noise_bandwidth_hz", "receiver_bandwidth_hz"):
+        if key in attrs:
+            return float(attrs[key])
+    return None
+
+
+def volume_of(tree: xr.DataTree, settings: ProcessingSettings, image_range_m=None):
+    """The counting volume of a dataset: the transmitter's 3 dB beam (from /Sonar) x the image
+    range (settings, else ``image_range_m``, else what /Processing recorded), with the overrides
+    of ``settings.count``."""
+    from processing.base.counting_volume import counting_volume
+    sonar = tree["Sonar"].ds if "Sonar" in tree.children else xr.Dataset()
+    cs = settings.count
+    need = []
+    for key, override in (("beamwidth_transmit_major", cs.azimuth_halfwidth),
+                          ("beamwidth_transmit_minor", cs.elevation_halfwidth)):
+        if key not in sonar and override is None:
+            need.append(key)
+    if need:
+        raise DatasetError(f"the counting volume needs /Sonar/{' and /Sonar/'.join(need)} (transmit "
+                           f"3 dB beamwidths, degrees) or count.azimuth_halfwidth_deg / "
+                           f"count.elevation_halfwidth_deg in the settings")
+    bw_az = np.radians(float(sonar["beamwidth_transmit_major"])) if "beamwidth_transmit_major" in sonar else 1.0
+    bw_el = np.radians(float(sonar["beamwidth_transmit_minor"])) if "beamwidth_transmit_minor" in sonar else 1.0
+    rng = settings.image.range_m
+    if rng is None:
+        rng = image_range_m
+    if rng is None:
+        pds = tree[PROCESSING_GROUP].ds
+        rng = (pds.attrs["image_range_m"] if "image_range_m" in pds.attrs
+               else (float(pds["image_range"][0]), float(pds["image_range"][-1])))
+    return counting_volume(tx_beamwidth_az_rad=bw_az, tx_beamwidth_el_rad=bw_el,
+                           image_range_m=rng, settings=cs)
+
+
+def pose_of(tree):
+    """The sonar's pose in the world frame, from /Platform.
+
+    Returns
+    -------
+    (position_m, rotation) or None
+        ``position_m`` shape (3,) (m, world frame: x forward, y starboard, z down) and
+        ``rotation`` shape (3, 3), columns the sonar axes in world coordinates; for a moving
+        platform one per ping: shapes (n_pings, 3) and (n_pings, 3, 3). None when the dataset
+        has no pose (sonar frame = world frame).
+    """
+    if "Platform" in tree.children and "sonar_rotation" in tree["Platform"].ds:
+        ds = tree["Platform"].ds
+        if "ping_sonar_rotation" in ds:
+            return (ds["ping_sonar_position"].values.astype(float),
+                    ds["ping_sonar_rotation"].values.astype(float))
+        return ds["sonar_position"].values.astype(float), ds["sonar_rotation"].values.astype(float)
+    return None
+
+
+@dataclass(frozen=True, eq=False)
+class Detected:
+    """What the detection stage passes on.
+
+    Attributes
+    ----------
+    table : dict of ndarray, each shape (n_detections,)
+        The detections (columns of :class:`processing.detection.detect.Detections`; flags bool).
+    volume : CountingVolume
+    range_resolution_m : float
+        The images' range resolution (m): the scoring and single-target cells.
+    azimuth_resolution_rad : float
+        The images' azimuth resolution (rad).
+    interferometric : bool
+        Whether the images give an elevation (3-D positions).
+    detections : Detections or None
+        The detector's own record (noise fit, thresholds, notes); None when read from a file.
+    first : Images or None
+        One ping's images (their attributes: range axis, gains) when detected here.
+    images : Images or None
+        Every ping's images, when they were asked to be kept.
+    """
+
+    table: dict
+    volume: CountingVolume
+    range_resolution_m: float
+    azimuth_resolution_rad: float
+    interferometric: bool
+    detections: object = None
+    first: object = None
+    images: object = None
+
+    @property
+    def n(self) -> int:
+        return int(len(self.table.get("ping", ())))
+
+
+class RecordChain:
+    """A dataset's processing chain, its inputs read and its settings parsed once.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree, str or Path
+        A dataset following the data contract, or its file.
+    settings : ProcessingSettings, ImageSettings, dict or path, optional
+        Default: the ``processing`` section the dataset's /Provenance records, else defaults.
+    """
+
+    def __init__(self, tree, settings=None):
+        self.tree = as_tree(tree)
+        self.settings: ProcessingSettings = resolve_settings(self.tree, settings)
+
+    # ------------------------------------------------------------ inputs, once
+    @cached_property
+    def record(self):
+        """The processing view of the dataset (:class:`~processing.base.dataset.SonarRecord`)."""
+        return read_record(self.tree, source=source_of(self.tree))
+
+    @cached_property
+    def noise_band_hz(self) -> float | None:
+        return noise_band_of(self.tree)
+
+    @cached_property
+    def pose(self):
+        return pose_of(self.tree)
+
+    @cached_property
+    def ping_index(self) -> np.ndarray:
+        """The scene's ping index of every ping, shape (n_pings,)."""
+        return ping_indices(self.tree[ELEMENT_GROUP].ds)
+
+    @cached_property
+    def truth(self) -> dict | None:
+        """``ping`` (row in the file) and ``position_m`` (n, 3, sonar frame) of every true target
+        of the pings in the file, or None without ground truth."""
+        try:
+            gt = self.tree[TRUTH_GROUP].ds
+        except KeyError:
+            return None
+        index_of = {int(p): i for i, p in enumerate(self.ping_index)}
+        pings = gt["target_ping_index"].values.astype(int)
+        keep = np.array([p in index_of for p in pings], bool)
+        pos = np.stack([gt[f"target_{a}"].values for a in "xyz"], -1)[keep]
+        return {"ping": np.array([index_of[p] for p in pings[keep]], int), "position_m": pos}
+
+    # ------------------------------------------------------------------ stages
+    def images(self, pings=None):
+        """The images of every ping (or of ``pings``, row indices), formed from the samples.
+
+        Returns
+        -------
+        Images
+            ``image`` shape (n_pings, n_groups, n_range, n_beams), complex (ADC counts).
+        """
+        from processing.chain import record_pings
+        from processing.imaging.images import form_images
+        rec = self.record if pings is None else record_pings(self.record, np.asarray(pings, int))
+        try:
+            return form_images(rec, self.settings.image, noise_band_hz=self.noise_band_hz)
+        except ValueError as exc:
+            raise DatasetError(str(exc)) from None
+
+    def _noise_magnitudes(self):
+        """|I| of the noise-only dataset the settings name (``noise.source: noise_file``)."""
+        st = self.settings
+        if st.detect.noise.source != "noise_file":
+            return None
+        from processing.base.dataset import open_tree
+        from processing.imaging.images import form_images
+        noise_rec = read_record(open_tree(st.detect.noise.file), source=str(st.detect.noise.file))
+        try:
+            ni = form_images(noise_rec, st.image, noise_band_hz=self.noise_band_hz)
+        except ValueError as exc:
+            raise DatasetError(f"{st.detect.noise.file}: {exc}") from None
+        return np.abs(ni.image[:, ni.group_index(st.detect.image_group)])
+
+    def detect(self, *, keep_images: bool = False) -> Detected:
+        """Detections with 3-D positions (thesis chapter 5), a few pings imaged at a time
+        (:func:`processing.chain.detect_record`).
+
+        Parameters
+        ----------
+        keep_images : bool
+            Also keep every ping's images (memory: all of them).
+
+        Raises
+        ------
+        processing.detection.noise.NoiseEstimateError
+            A noise-derived threshold on noise-free images.
+        DatasetError
+            Missing pieces of the dataset, named.
+        """
+        from processing.chain import detect_record
+        from processing.detection.noise import NoiseEstimateError
+        rec = self.record
+        noise_mags = self._noise_magnitudes()
+        try:
+            # the attributes of the images (range axis, gains, resolution) from one ping
+            first = self.images(pings=[0])
+            volume = volume_of(self.tree, self.settings,
+                               image_range_m=(float(first.range_m[0]), float(first.range_m[-1])))
+            keep = range(rec.samples.shape[0]) if keep_images else ()
+            det, kept = detect_record(rec, self.settings, volume, noise_band_hz=self.noise_band_hz,
+                                      pose=self.pose, noise_magnitudes=noise_mags, keep_pings=keep)
+        except ValueError as exc:
+            if isinstance(exc, (NoiseEstimateError, DatasetError)):
+                raise
+            raise DatasetError(str(exc)) from None
+        table = {k: np.asarray(v) for k, v in det.table.items()}
+        for k in FLAG_COLUMNS:
+            if k in table:
+                table[k] = table[k].astype(bool)
+        return Detected(table, volume, float(first.range_resolution_m),
+                        float(first.azimuth_resolution_rad), bool(first.interferometric),
+                        detections=det, first=first, images=kept)
+
+    def detected(self) -> Detected:
+        """The dataset's detections: those it holds (/Processing/Detections, read as a record),
+        else detected here."""
+        tree = self.tree
+        if PROCESSING_GROUP not in tree.children or "Detections" not in tree[PROCESSING_GROUP].children:
+            return self.detect()
+        ds = tree[DETECTIONS_GROUP].ds
+        table = {k: ds[k].values for k in ds.data_vars if ds[k].dims == ("detection",)}
+        for k in FLAG_COLUMNS:
+            if k in table:
+                table[k] = table[k].astype(bool)
+        attrs = ds.attrs if "range_resolution_m" in ds.attrs else tree[PROCESSING_GROUP].ds.attrs
+        pattrs = tree[PROCESSING_GROUP].ds.attrs
+        return Detected(table, volume_of(tree, self.settings), float(attrs["range_resolution_m"]),
+                        float(attrs["azimuth_resolution_rad"]),
+                        bool(pattrs.get("interferometric", 1)))
+
+    def count(self, detected: Detected) -> tuple[dict, dict]:
+        """Counts and density per ping, and scores against the truth when there is one.
+
+        Returns
+        -------
+        columns : dict of ndarray, each shape (n_pings,)
+            count_before, count_after, density_per_m3, occupied_density_per_m3 and, with
+            ground truth, true_in_volume, errors, hits/misses/false alarms
+            (:func:`processing.detection.detect.score_all`); the values only interferometry
+            gives are NaN without it.
+        attrs : dict
+            ``occupied_range_m`` (list, empty without an occupied layer), ``occupied_volume_m3``.
+        """
+        from processing.base.counting_volume import occupied_range
+        from processing.detection.detect import score_all
+        st = self.settings
+        table, volume = detected.table, detected.volume
+        n = len(self.ping_index)
+        res = score_all(table, self.truth, volume, n, dr=detected.range_resolution_m,
+                        dtheta=detected.azimuth_resolution_rad, gate=st.count.gate_cells,
+                        unresolved=st.count.unresolved_cells)
+        # the density where the targets are: the range layer the run's located targets occupy
+        layer = occupied_range(table["range_m"][table["in_volume"]], volume)
+        occupied_m3 = volume.sector_volume_m3(layer) if layer is not None else 0.0
+        res["occupied_density_per_m3"] = (res["count_after"] / occupied_m3 if occupied_m3 > 0
+                                          else np.full(n, np.nan))
+        if not detected.interferometric:
+            # no elevation, so nothing is located in 3-D: "after interferometry" does not exist
+            # (NaN, not a count of 0 that reads like an empty volume)
+            for k in AFTER_KEYS:
+                if k in res:
+                    res[k] = np.full(n, np.nan)
+        return res, {"occupied_range_m": list(layer) if layer is not None else [],
+                     "occupied_volume_m3": occupied_m3}
+
+    def single_targets(self, detected: Detected) -> dict:
+        """Target strength and the single-target verdict of every detection.
+
+        Returns
+        -------
+        dict of ndarray, each shape (n_detections,)
+            ``ts_uncomp_db``, ``ts_comp_db`` (dB re 1 m²; NaN without a calibration, ts_comp NaN
+            beyond the compensable beam), ``beam_pattern_db`` (two-way, dB re axis) and
+            ``single_target`` (bool); see :mod:`processing.backscatter.single_targets`.
+        """
+        from processing.backscatter.calibration import calibration_of
+        from processing.backscatter.single_targets import single_targets
+        from processing.backscatter.target_strength import beam_pattern_of, target_strength_db
+        st, det = self.settings, detected.table
+        n = detected.n
+        sonar_xyz = np.stack([det[f"{a}_m"] for a in "xyz"], -1).reshape(n, 3)
+        try:     # recorded data may lack a calibration or the element geometry: TS is then NaN
+            cal = calibration_of(self.tree)
+            ts_u, ts_c, pat = target_strength_db(det["amplitude"], det["range_m"], sonar_xyz,
+                                                 gain_counts_m=cal.gain_counts_m,
+                                                 absorption_db_per_m=cal.absorption_db_per_m,
+                                                 pattern=beam_pattern_of(self.tree))
+        except DatasetError:
+            ts_u = ts_c = pat = np.full(n, np.nan)
+        single = single_targets(det["ping"], det["range_m"], det["azimuth_rad"], det["amplitude"],
+                                range_resolution_m=detected.range_resolution_m,
+                                azimuth_resolution_rad=detected.azimuth_resolution_rad,
+                                sidelobe_db=st.track.sidelobe_db)
+        single &= ~(ts_c < st.track.min_ts_db)
+        return {"ts_uncomp_db": ts_u, "ts_comp_db": ts_c, "beam_pattern_db": pat,
+                "single_target": single}
