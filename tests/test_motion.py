@@ -277,7 +277,7 @@ def test_meshes_built_once_answer_as_a_scene_rebuilt_at_each_pose():
         pose = setup.pose_at(ping)
         rs, view = setup.ray_scene_at(sc, pose)
         assert rs is setup.ray_scene and view is not None          # nothing rebuilt
-        fresh = build_ray_scene(sc, setup, pose)
+        fresh = build_ray_scene(sc, setup.sonar, setup.medium, pose)
         t = draw_targets(sc, ping, pose)
         q = np.ones(len(t), complex)
         np.testing.assert_array_equal(rs.shadowed(t.position_sonar_m, view),

@@ -473,7 +473,7 @@ def test_multipath_doppler_is_the_rate_of_change_of_each_path(mesh):
     t0, dt = 1.0, 1e-3
     rs.advance(t0)
     vs = rs.multipath(p0, np.ones(1), 1, velocities_m_s=v_t, sonar_velocity_m_s=v_s)
-    rate = rs.last_path_rate_m_s.copy()
+    rate = vs.rate_m_s.copy()
     assert rate.size == len(vs) >= 3
 
     def lengths(sign):
@@ -502,16 +502,21 @@ def test_a_ping_gives_its_surface_paths_the_doppler_of_the_moving_sea(monkeypatc
              "waves: [{amplitude_m: 0.3, wavelength_m: 12.0}]}").replace(
         "effects: {multipath_order: 1}", "effects: {multipath_order: 1, doppler: true}"))
     setup = make_setup(scene)
-    seen = {}
-    real = ping_mod.synthesize
+    seen, paths = {}, []
+    real, real_multipath = ping_mod.synthesize, setup.ray_scene.multipath
 
     def spy(*args, **kw):
         seen.update(kw)
         return real(*args, **kw)
 
+    def multipath_spy(*args, **kw):
+        paths.append(real_multipath(*args, **kw))
+        return paths[-1]
+
     monkeypatch.setattr(ping_mod, "synthesize", spy)
+    monkeypatch.setattr(setup.ray_scene, "multipath", multipath_spy)
     simulate_ping(scene, setup, 2)
-    rate = setup.ray_scene.last_path_rate_m_s
+    rate = paths[0].rate_m_s
     f0, c = scene.signal.center_frequency_hz, scene.medium.sound_speed_m_s
     assert seen["doppler_hz"][0] == 0.0                      # the still target, direct
     np.testing.assert_allclose(seen["doppler_hz"][1:1 + rate.size], -rate * f0 / c)

@@ -88,8 +88,6 @@ class RayScene:
     specular_capped: int = 0
     """Specular paths whose level the focusing limit capped (near a caustic), this run."""
     last_specular: list = field(default_factory=list)
-    last_path_rate_m_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    """d(path length)/dt (m/s) of each path of the last ``multipath`` call."""
     """(mesh index, start, SpecularPoints, visible) of the last ``multipath`` call (views)."""
     _normal_cache: dict = field(default_factory=dict)
     time_s: float = 0.0
@@ -427,9 +425,9 @@ class RayScene:
             This ping's sonar frame in the frame the scene was built in (None: the same).
         velocities_m_s : array_like, shape (n, 3), optional
             The targets' velocities (m/s) in the ping's sonar frame axes; with
-            ``sonar_velocity_m_s`` (3,) they give each path's rate of change of length,
-            ``last_path_rate_m_s`` (m/s, transmit leg + receive leg, the moving sea included):
-            its Doppler shift is −f0/c times it.
+            ``sonar_velocity_m_s`` (3,) they give each path's rate of change of length, the
+            scatterers' ``rate_m_s`` (m/s, transmit leg + receive leg, the moving sea
+            included): its Doppler shift is −f0/c times it.
 
         Returns
         -------
@@ -440,7 +438,6 @@ class RayScene:
         p = _into(view, np.asarray(positions_m, float).reshape(-1, 3))
         q = np.asarray(strength, complex).reshape(-1)
         self.last_specular = []
-        self.last_path_rate_m_s = np.zeros(0)
         if order < 1 or not self.reflectors or p.shape[0] == 0:
             return VirtualScatterers.empty()
         rot = None if view is None else view.rotation
@@ -464,9 +461,10 @@ class RayScene:
         ti, ri = ti[bounced], ri[bounced]
         if ti.size == 0:
             return VirtualScatterers.empty()
-        self.last_path_rate_m_s = t_rate[ti] + r_rate[ri]
+        rates = None if vel is None and v_s is None else t_rate[ti] + r_rate[ri]
         return VirtualScatterers(_out_of(view, t_pt[ti]), _out_of(view, r_pt[ri]),
-                                 q[t_tgt[ti]] * t_c[ti] * r_c[ri], np.full(ti.size, "multipath"))
+                                 q[t_tgt[ti]] * t_c[ti] * r_c[ri], np.full(ti.size, "multipath"),
+                                 rates)
 
     # -------------------------------------------------------------- mesh targets
     def mesh_targets(self, view: Pose | None = None) -> VirtualScatterers:
@@ -514,15 +512,24 @@ class RayScene:
         return self._mesh_target_scatterers
 
 
-def build_ray_scene(scene, setup, pose=None) -> RayScene | None:
+def build_ray_scene(scene, sonar, medium, pose=None) -> RayScene | None:
     """The ray-traced scene of a run, or None when the scene has no meshes (no caster built).
 
     Built in the sonar frame of ``pose`` (default: the mounting pose, the sonar at rest):
     world-frame meshes are placed there, sonar-frame meshes are taken as they are.
+
+    Parameters
+    ----------
+    scene : Scene
+        Its boundaries, mesh targets and ``effects`` (ray threads, specular settings).
+    sonar : Sonar
+        The arrays (transmit and receive phase centres) and the mounting pose.
+    medium : Medium
+    pose : Pose, optional
     """
     if not scene.boundaries and not scene.targets.meshes:
         return None
-    meshes: list[SceneMesh] = scene_meshes(scene, pose if pose is not None else setup.sonar.pose)
+    meshes: list[SceneMesh] = scene_meshes(scene, pose if pose is not None else sonar.pose)
     caster = RayCaster(meshes, threads=scene.effects.ray_threads)
     planes = {}
     for i, sm in enumerate(meshes):
@@ -531,6 +538,6 @@ def build_ray_scene(scene, setup, pose=None) -> RayScene | None:
             pl = sm.plane
             if pl is not None:
                 planes[i] = pl
-    rx = setup.sonar.receiver.elements
-    return RayScene(meshes, caster, setup.sonar.transmitter.phase_center_m, rx.phase_center_m, planes,
-                    setup.medium, scene.signal.center_frequency_hz, specular=scene.effects.specular)
+    rx = sonar.receiver.elements
+    return RayScene(meshes, caster, sonar.transmitter.phase_center_m, rx.phase_center_m, planes,
+                    medium, scene.signal.center_frequency_hz, specular=scene.effects.specular)

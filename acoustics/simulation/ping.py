@@ -14,11 +14,11 @@ from acoustics.synthesis.synthesize import synthesize
 from acoustics.targets.draw import (TargetSet, draw_targets, has_swimbladders,
                                     swimbladder_backscatter)
 
-__all__ = ["simulate_ping", "doppler_shift_hz"]
+__all__ = ["simulate_ping", "doppler_shift_hz", "direct_path_rate_m_s"]
 
 
-def doppler_shift_hz(scene, setup: Setup, ping: int, pose, targets: TargetSet) -> np.ndarray:
-    """Two-way Doppler shift f_d = 2 v_r f0 / c (Hz) of each target, shape (n,): v_r is the
+def direct_path_rate_m_s(setup: Setup, ping: int, pose, targets: TargetSet) -> np.ndarray:
+    """d(path length)/dt (m/s) of each target's direct two-way path, shape (n,): −2 v_r, v_r the
     speed at which target and sonar close (the target's velocity, less the sonar's, along the
     line between them; the sonar's from its poses 0.05 s either side of the ping)."""
     v_target = (targets.velocity_world_m_s if targets.velocity_world_m_s is not None
@@ -28,7 +28,14 @@ def doppler_shift_hz(scene, setup: Setup, ping: int, pose, targets: TargetSet) -
     dist = np.linalg.norm(d, axis=1, keepdims=True)
     d = np.divide(d, dist, out=np.zeros_like(d), where=dist > 0)
     closing = -np.sum((v_target - v_sonar) * d, axis=1)
-    return 2.0 * closing * scene.signal.center_frequency_hz / setup.medium.sound_speed_m_s
+    return -2.0 * closing
+
+
+def doppler_shift_hz(scene, setup: Setup, ping: int, pose, targets: TargetSet) -> np.ndarray:
+    """Two-way Doppler shift f_d = 2 v_r f0 / c (Hz) of each target's direct path, shape (n,)
+    (:func:`direct_path_rate_m_s`: f_d = −f0 (dL/dt) / c)."""
+    rate = direct_path_rate_m_s(setup, ping, pose, targets)
+    return -rate * scene.signal.center_frequency_hz / setup.medium.sound_speed_m_s
 
 
 def _sonar_velocity_world(setup: Setup, ping: int) -> np.ndarray:
@@ -87,9 +94,13 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
         with log.stage("platform_in_flight"):
             p_rx = setup.platform.at_arrival(setup.sonar.pose, ping * setup.interval_s,
                                              targets.position_world_m, setup.medium.sound_speed_m_s)
-    multipath_rate = np.zeros(0)
+    # each path kind carries its own rate of change of length (its Doppler), when asked for
+    direct_rate = None
+    if fx.doppler and len(targets):
+        with log.stage("doppler"):
+            direct_rate = direct_path_rate_m_s(setup, ping, pose, targets)[direct]
     parts = [VirtualScatterers(targets.position_sonar_m[direct], p_rx[direct],
-                               strength[direct], np.full(int(direct.sum()), "direct"))]
+                               strength[direct], np.full(int(direct.sum()), "direct"), direct_rate)]
     if rs is not None and fx.multipath_order > 0 and rs.reflectors and len(targets):
         with log.stage("multipath"):
             kw = {}
@@ -100,7 +111,6 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
                           sonar_velocity_m_s=pose.rotation.T @ _sonar_velocity_world(setup, ping))
             parts.append(rs.multipath(targets.position_sonar_m, strength, fx.multipath_order, view,
                                       **kw))
-            multipath_rate = rs.last_path_rate_m_s
     if rs is not None and scene.targets.meshes:
         with log.stage("mesh_targets"):
             parts.append(rs.mesh_targets(view))
@@ -108,16 +118,8 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
         with log.stage("reverberation"):
             parts.append(rs.reverberation(scene, setup, ping, seed, view))
     vs = VirtualScatterers.concat(parts)
-    doppler = None
-    if fx.doppler and len(vs) and len(targets):
-        with log.stage("doppler"):
-            doppler = np.zeros(len(vs))
-            n_direct = int(direct.sum())
-            doppler[:n_direct] = doppler_shift_hz(scene, setup, ping, pose, targets)[direct]
-            # multipath paths follow the direct ones: f_d = −f0 (dL/dt) / c, the moving sea's
-            # share included
-            doppler[n_direct:n_direct + multipath_rate.size] = (
-                -multipath_rate * scene.signal.center_frequency_hz / setup.medium.sound_speed_m_s)
+    # f_d = −f0 (dL/dt) / c of every path; boundary and mesh-target facets hold still (rate 0)
+    doppler = vs.doppler_hz(scene.signal.center_frequency_hz, setup.medium.sound_speed_m_s)
     if len(vs):
         with log.stage("echoes"):
             bistatic = not np.array_equal(vs.p_tx, vs.p_rx)

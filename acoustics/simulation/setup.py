@@ -71,7 +71,7 @@ class Setup:
             self._moving_rays.clear()
             log = log if log is not None else StageLog()
             with log.stage("rays_build"):
-                moved = build_ray_scene(scene, self, pose)
+                moved = build_ray_scene(scene, self.sonar, self.medium, pose)
             moved.caster.rays_cast = rs.caster.rays_cast      # one count per run
             self._moving_rays[key] = moved
         return self._moving_rays[key], None
@@ -117,13 +117,14 @@ def make_setup(scene, log: StageLog | None = None) -> Setup:
     if scene.sonar.motion is not None:
         from acoustics.sonar.platform import PlatformMotion
         platform = PlatformMotion.from_spec(scene.sonar.motion, scene.resolve_path)
-    setup = Setup(sonar, medium, pulse, model, az, el, tuple(float(r) for r in rng_m),
-                  platform=platform, interval_s=scene.pings.interval_s)
+    ray_scene = None
     if scene.boundaries or scene.targets.meshes:
         from acoustics.paths.ray_scene import build_ray_scene
         log = log if log is not None else StageLog()
         with log.stage("rays_build"):
-            object.__setattr__(setup, "ray_scene", build_ray_scene(scene, setup))
+            ray_scene = build_ray_scene(scene, sonar, medium)
+    setup = Setup(sonar, medium, pulse, model, az, el, tuple(float(r) for r in rng_m),
+                  ray_scene=ray_scene, platform=platform, interval_s=scene.pings.interval_s)
     return setup
 
 
