@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from abacus.figures.plots import _bilinear, fan_beam
+from abacus.figures.plots import fan_beam
 
 
 def test_fan_beam_is_exact_for_a_field_bilinear_in_range_and_sine():
@@ -41,21 +41,6 @@ def test_fan_beam_puts_a_point_echo_where_it_is():
     k = np.unravel_index(np.argmax(img), img.shape)
     assert abs(x[k[1]] - range_m[i] * np.sin(theta[j])) <= 0.02
     assert abs(z[k[0]] - range_m[i] * np.cos(theta[j])) <= 0.02
-
-
-@pytest.mark.parametrize("shape", [(700, 128), (2, 2), (1, 5), (5, 1), (1, 1)])
-def test_bilinear_agrees_with_scipy_map_coordinates(shape):
-    """The written-out interpolation is ``scipy.ndimage.map_coordinates(order=1)`` inside the
-    grid, to rounding, including points on its last row and column and one-sample axes."""
-    from scipy.ndimage import map_coordinates
-    rng = np.random.default_rng(7)
-    values = rng.normal(size=shape)
-    i = rng.uniform(0, shape[0] - 1, (50, 60))
-    j = rng.uniform(0, shape[1] - 1, (50, 60))
-    i[0, :4] = [0, shape[0] - 1, 0, shape[0] - 1]
-    j[0, :4] = [0, shape[1] - 1, shape[1] - 1, 0]
-    want = map_coordinates(values, [i, j], order=1)
-    np.testing.assert_allclose(_bilinear(values, i, j), want, rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("n_pings", [1, 3, 7])

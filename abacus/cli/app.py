@@ -83,14 +83,10 @@ def _log_traceback(exc) -> str:
         return f"(the log could not be written: {log_exc.strerror})"
 
 
-def _exit_now(code: int, message: str | None = None):
-    """Leave at once: temporaries removed, streams flushed, no interpreter finalisation (a
-    finaliser could wait forever on a lock an interrupted writer still holds)."""
-    import os
-
+def _clean_up(message: str | None = None):
+    """Temporaries removed, ``message`` on stderr, streams flushed: how every interrupted
+    command ends."""
     from processing.base.atomic import remove_active
-    if "abacus.cli.figure_worker" in sys.modules:   # it may be writing into a temporary
-        sys.modules["abacus.cli.figure_worker"].stop_all()
     remove_active()
     if message:
         print(message, file=sys.stderr)
@@ -99,7 +95,23 @@ def _exit_now(code: int, message: str | None = None):
             stream.flush()
         except (OSError, ValueError):
             pass
-    os._exit(code)
+
+
+def _end_now(code: int, message: str | None = None):
+    """Leave at once, where the command cannot end itself in time (a second signal; 5 s after
+    the first; an interrupt a finaliser swallowed): temporaries removed, then the signal ends
+    the process by its default action — which a shell reports as 128 + the signal (130, 143).
+    From another thread than the main one (the watchdog), which may not change a signal's
+    action, SIGKILL ends it."""
+    import os
+    import signal
+    import threading
+    _clean_up(message)
+    if threading.current_thread() is threading.main_thread():
+        signum = signal.SIGINT if code == EXIT_INTERRUPTED else signal.SIGTERM
+        signal.signal(signum, signal.SIG_DFL)
+        signal.raise_signal(signum)
+    os.kill(os.getpid(), signal.SIGKILL)
 
 
 # the signal this process has received, as (exit status, word): a KeyboardInterrupt raised
@@ -110,12 +122,13 @@ _RECEIVED: list = []
 
 def _install_signal_handlers():
     """SIGINT raises KeyboardInterrupt and SIGTERM _Terminated in the main thread; a second
-    signal, or 5 s without the first one having ended the process, exits at once."""
+    signal, or 5 s without the first one having ended the process, ends it at once
+    (:func:`_end_now`)."""
     import signal
     import threading
 
     def watchdog(code, message):
-        timer = threading.Timer(5.0, _exit_now, args=(code, message))
+        timer = threading.Timer(5.0, _end_now, args=(code, message))
         timer.daemon = True
         timer.start()
 
@@ -124,7 +137,7 @@ def _install_signal_handlers():
     def handler(signum, frame):
         code = EXIT_INTERRUPTED if signum == signal.SIGINT else EXIT_TERMINATED
         if state["seen"]:
-            _exit_now(code, "interrupted")
+            _end_now(code, "interrupted")
         state["seen"] = True
         _RECEIVED.append((code, "interrupted" if signum == signal.SIGINT else "terminated"))
         watchdog(code, "interrupted")
@@ -144,7 +157,7 @@ def _unraisable_ends_an_interrupt(default_hook):
     def hook(unraisable):
         if _RECEIVED and unraisable.exc_type is not None and \
                 issubclass(unraisable.exc_type, (KeyboardInterrupt, _Terminated)):
-            _exit_now(*_RECEIVED[0])
+            _end_now(*_RECEIVED[0])
         default_hook(unraisable)
     return hook
 
@@ -162,41 +175,12 @@ def _signal_cause(exc):
     return None
 
 
-def _quiet_threads():
-    """Helper threads that wait asleep and do not run for nothing, unless the user chose.
-
-    - ``OMP_WAIT_POLICY=PASSIVE``: the compiled kernels' threads (numba's OpenMP layer, GNU
-      libgomp) otherwise spin for ≈ 300 000 turns after each parallel loop, on cores the figure
-      helper and the FFT workers want. Measured on `abacus run default` (2 cores, 5
-      interleaved pairs): 6.9 → 5.9 CPU-s and 4.34 → 3.76 s with plots, 2.85 → 2.81 s without.
-    - ``OPENBLAS_NUM_THREADS=1``: abacus' matrix products are small (elements × directions);
-      OpenBLAS' second thread made none of them faster and spun beside them: the cold beam
-      table 2.37 s either way, 4.40 → 2.35 CPU-s (a cold run 11.6 → 9.2 CPU-s); a warm
-      `abacus run default` (2 cores, 6 interleaved pairs) 5.94 → 5.70 CPU-s with plots,
-      3.48 → 3.23 without, its wall time unchanged within the noise. Parallel work is the
-      processing chain's threads' and the kernels'.
-
-    Set for every command run from the command line (not for :func:`main` called with
-    ``argv`` inside another program), before numpy or libgomp load (each reads its setting
-    once); inherited by the command's helper processes and local workers."""
-    import os
-    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-
-
 def main(argv=None) -> int:
     """Run one ``abacus`` command; every error a user can cause ends as one line on stderr and
     a documented exit status, never a traceback.
 
-    ``argv`` None: the process' own command line (``abacus ...``, ``python -m acoustics``), which
-    ends with the command."""
-    if argv is None:     # the process is the command's: its environment is ours to set
-        _quiet_threads()
+    ``argv`` None: the process' own command line (``abacus ...``, ``python -m acoustics``)."""
     code = _command(argv)
-    if argv is None:
-        # the process ends here, its outputs closed and in place: tearing down its ≈ 200 000
-        # objects (mostly modules') would cost 0.3–0.8 s of every command, for nothing
-        _exit_now(code)
     return code
 
 
@@ -209,7 +193,7 @@ def _command(argv) -> int:
             # an error class whose module was never imported cannot have been raised: the
             # classes are looked up when an error arrives, so that no command waits for
             # their modules before it starts (xarray, pydantic: ≈ 0.5 s, which `abacus run`
-            # spends with its figure helper already importing matplotlib beside it)
+            # spends with its figure workers already importing matplotlib beside it)
             # (a module still being imported by another thread may lack its class yet)
             found = (getattr(sys.modules.get(module), name, None) for module, name in errors)
             return tuple(cls for cls in found if cls is not None)
@@ -241,9 +225,11 @@ def _command(argv) -> int:
                   "was left half-written", file=sys.stderr)
             return EXIT_RESOURCES
     except KeyboardInterrupt:
-        _exit_now(EXIT_INTERRUPTED, "interrupted")
+        _clean_up("interrupted")
+        return EXIT_INTERRUPTED
     except _Terminated:
-        _exit_now(EXIT_TERMINATED, "terminated")
+        _clean_up("terminated")
+        return EXIT_TERMINATED
     except BrokenPipeError:
         # the reader of stdout went away (`abacus beams --json | head`): not an error of ours
         import os
@@ -254,7 +240,8 @@ def _command(argv) -> int:
         # cause is the KeyboardInterrupt / _Terminated our handlers raised: still a signal
         cause = _signal_cause(exc) or (_RECEIVED[0] if _RECEIVED else None)
         if cause is not None:
-            _exit_now(*cause)
+            _clean_up(cause[1])
+            return cause[0]
         where = _log_traceback(exc)
         print(f"error: internal error ({exc.__class__.__name__}: {str(exc).splitlines()[0][:200] if str(exc) else ''}); "
               f"the traceback is in {where} — please report it", file=sys.stderr)

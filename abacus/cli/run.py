@@ -4,11 +4,11 @@ The run folder appears complete or not at all: the numbers (dataset, detections,
 resolved scene, the beam table) are written into a hidden staging folder next to it, which is
 renamed into place when they are all there. Figure folders appear after the numbers are saved,
 each again staged and renamed, so a failure or Ctrl-C while drawing never costs the numbers and
-never leaves half a folder. The figures are drawn by a helper process
-(:mod:`abacus.cli.figure_worker`) beside this one: it starts importing matplotlib at once,
-draws the first ping's images (into a hidden scratch folder) while the pings are simulated and
-processed, and the detection and count figures (with forked copies of itself, on spare cores)
-while the numbers are written; this process only waits for them before placing their folders.
+never leaves half a folder. The figures are drawn through :mod:`abacus.figures.drawing`
+(in this process, or by a standard-library process pool where a core is spare) from the run's
+own data: the first ping's images once the pings are simulated, the detection and count
+figures once they are counted, each into a hidden scratch folder that is moved into the run
+folder when the numbers are saved.
 """
 from __future__ import annotations
 
@@ -53,12 +53,9 @@ def command(args) -> int:
     from contextlib import ExitStack
 
     with ExitStack() as stack:
-        # the figure helper starts first of all: it imports matplotlib on the core that this
-        # process' own imports leave idle, then draws while this process computes
-        helper = None
-        if args.plots:
-            from abacus.cli.figure_worker import FigureWorker
-            helper = stack.enter_context(FigureWorker())
+        # the figures' drawing starts first: a pool's workers import matplotlib while this
+        # process imports and simulates (abacus.figures.drawing)
+        drawing = stack.enter_context(figure_drawing()) if args.plots else None
         import processing
         from abacus.cli.beams import beam_numbers
         from acoustics.simulation.run import simulate
@@ -78,7 +75,7 @@ def command(args) -> int:
         pings = ping_list(scene, args.pings)
         check_scene_resources(scene, args, pings=len(pings) if pings else None, images=args.images,
                               output=outdir / "run.nc", figures=args.plots)
-        figures = _RunFigures(stack, helper, outdir) if helper is not None else None
+        figures = stack.enter_context(_RunFigures(drawing, outdir)) if drawing is not None else None
         if figures is not None:
             figures.beams(scene)
         print(f"scene '{scene.name}' ({args.scene}): {scene.pings.count} ping(s), "
@@ -88,13 +85,10 @@ def command(args) -> int:
             with log.stage("simulate"):
                 # scoring's assignment solver: 0.2 s of imports the processing would wait for
                 prefetch("scipy.optimize")
-                if figures is not None:
-                    # a ping depends on no other: the first one's images are drawn while the
-                    # run simulates and processes the others (one ping simulated twice, ≈ 1 %)
-                    first = pings[0] if pings is not None else scene.pings.first
-                    figures.images(simulate(scene, pings=[first]))
                 tree = simulate(scene, pings=pings, progress=Progress("simulate"))
             with log.stage("process"):
+                if figures is not None:
+                    figures.images(tree)      # the first ping's, drawn while the run processes
                 tree = processing.count(tree, images=args.images)
                 result = processing.count_summary(tree)
                 if figures is not None:
@@ -122,6 +116,15 @@ def command(args) -> int:
     return 0
 
 
+def figure_drawing():
+    """How ``abacus run`` draws its figures: a pool of one worker where this process can spare
+    a core for it (the run's own threads use the others; measured in docs/performance.md, "End
+    to end"), else in this process."""
+    from abacus.figures.drawing import Drawing, PoolDrawing
+    from processing.base.resources import usable_cores
+    return PoolDrawing(workers=1) if usable_cores() >= 2 else Drawing()
+
+
 def run_notes(tree, caught) -> list[str]:
     """What deserves a look in a run, once each: warnings raised while simulating and
     processing (non-Rayleigh noise, a dataset without subarray B, ...) and ADC clipping."""
@@ -140,64 +143,61 @@ def run_notes(tree, caught) -> list[str]:
     return notes
 
 
-def drawing_shares(n: int, drawers: int) -> list[slice]:
-    """``n`` figures split over at most ``drawers`` processes: consecutive slices, as even as
-    can be, the larger ones first (they go to the forked copies, which start first)."""
-    parts = max(1, min(n, drawers))
-    sizes = [n // parts + (k < n % parts) for k in range(parts)]
-    starts = [sum(sizes[:k]) for k in range(parts)]
-    return [slice(a, a + m) for a, m in zip(starts, sizes)]
-
-
 class _RunFigures:
-    """The run's figures, drawn by the helper process into scratch folders next to the run
-    folder (which does not exist until the numbers are saved) while this process computes and
-    writes; :meth:`place` moves each folder into the run folder, staged, once they are saved.
-    This process never imports matplotlib (≈ 1 s of its own)."""
+    """The run's figures, drawn (by :mod:`abacus.figures.drawing`) into scratch folders next
+    to the run folder, which does not exist until the numbers are saved; :meth:`place` moves
+    each folder into the run folder, staged, once they are saved. Leaving the ``with`` block
+    stops the drawing before it removes what is left of the scratch folders."""
 
-    def __init__(self, stack, helper, outdir: Path):
-        self._stack, self._helper, self._outdir = stack, helper, outdir
+    def __init__(self, drawing, outdir: Path):
+        from contextlib import ExitStack
+        self._drawing, self._outdir = drawing, outdir
+        self._scratch = ExitStack()
         self._folders: dict = {}
         self._beam_pngs = None       # the beam figures' PNGs, when the geometry cache has them
 
-    def _submit(self, name: str, *jobs):
-        """Send ``(job, data)`` pairs drawn into the scratch folder ``name``, together."""
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        try:
+            self._drawing.close(cancel=kind is not None)    # nothing writes into the folders
+        finally:
+            self._scratch.close()
+        return False
+
+    def _submit(self, name: str, job, *data):
+        """Draw ``job(data, folder)`` for each ``data``, into the scratch folder ``name``."""
         from processing.base.atomic import scratch
         if name not in self._folders:
             # named so that any later write of the run folder removes it if this process is killed
-            folder = self._stack.enter_context(scratch(self._outdir.parent, f"{self._outdir.name}.{name}"))
+            folder = self._scratch.enter_context(scratch(self._outdir.parent, f"{self._outdir.name}.{name}"))
             self._folders[name] = (folder, [])
-        folder, tickets = self._folders[name]
-        tickets.extend(self._helper.submit_together([(job, data, folder) for job, data in jobs]))
+        folder, futures = self._folders[name]
+        futures.extend(self._drawing.submit(job, d, folder) for d in data)
 
     def images(self, tree):
         """images/: the image figures of the dataset's first ping."""
-        from abacus.figures.plots import image_figure_data
+        from abacus.figures.plots import draw_image_figures, image_figure_data
         from processing.records import figure_images
-        self._submit("images", ("draw_image_figures", image_figure_data(figure_images(tree, [0]))))
+        self._submit("images", draw_image_figures, image_figure_data(figure_images(tree, [0])))
 
     def counts(self, tree):
         """counts/: detections of the first three pings, and counts per ping."""
-        from abacus.cli.figure_worker import spare_drawers
-        from abacus.figures.plots import count_figure_data
+        from abacus.figures.plots import count_figure_data, draw_counts_figure, draw_detection_figures
         n = tree["Processing/Counts"].sizes["ping_time"]
         data = count_figure_data(tree, pings=range(min(n, 3)))
-        # these are drawn while the numbers are written and then waited for: split over every
-        # process that can draw at once (the helper and its forked copies, one per spare core),
-        # the larger shares first (the copies take them) and counts.png (half a ping's cost)
-        # last, with the helper's own share. Pings drawn by one process share one figure (made
-        # once, its data changed per ping; measured 0.29 CPU-s the first ping, 0.21 each next)
-        ds = data["detections"]
-        self._submit("counts", *[("draw_detection_figures", ds[s]) for s in
-                                 drawing_shares(len(ds), spare_drawers() + 1)],
-                     ("draw_counts_figure", data["counts"]))
+        # the pings drawn by one job share one figure (made once, its data changed per ping)
+        self._submit("counts", draw_detection_figures, data["detections"])
+        self._submit("counts", draw_counts_figure, data["counts"])
 
     def beams(self, scene):
-        """beams/: copied from the geometry cache, or drawn by the helper (and then cached)."""
+        """beams/: copied from the geometry cache, or drawn (and then cached)."""
         from abacus.cli.beams import beam_cuts_of, cached_beam_figures
+        from abacus.figures.beams import plot_beam_figures
         self._beam_pngs = cached_beam_figures(scene)
         if self._beam_pngs is None:
-            self._submit("beams", ("plot_beam_figures", beam_cuts_of(scene)))
+            self._submit("beams", plot_beam_figures, beam_cuts_of(scene))
 
     def place(self, scene):
         """Wait for every drawing; each figure folder appears whole in the run folder."""
@@ -208,9 +208,8 @@ class _RunFigures:
         if self._beam_pngs is not None:
             with staged(self._outdir / "beams") as tmp:
                 write_beam_figures(self._beam_pngs, tmp)
-        for name, (folder, tickets) in self._folders.items():
-            for ticket in tickets:
-                self._helper.result(ticket)
+        for name, (folder, futures) in self._folders.items():
+            self._drawing.wait(futures)
             if name == "beams":
                 store_beam_figures(scene, folder)     # the next run copies them
             with staged(self._outdir / name) as tmp:

@@ -59,6 +59,7 @@ def fan_beam(magnitude, range_m, beam_angle_rad, *, pixel_m: float | None = None
     inside : ndarray of bool, shape (nz, nx)
         Only with ``with_mask``: pixels inside the fan.
     """
+    from scipy.ndimage import map_coordinates
     mag = np.asarray(magnitude, float)
     r = np.asarray(range_m, float)
     th = np.asarray(beam_angle_rad, float)
@@ -75,37 +76,9 @@ def fan_beam(magnitude, range_m, beam_angle_rad, *, pixel_m: float | None = None
     # interpolate in sin θ, in which FFT beams are uniform
     ti = np.interp(np.sin(tt), np.sin(th), np.arange(th.size), left=-1, right=-1)
     inside = (ri >= 0) & (ti >= 0)
-    img = np.where(inside, _bilinear(mag, np.where(inside, ri, 0), np.where(inside, ti, 0)), 0.0)
+    img = np.where(inside, map_coordinates(mag, [np.where(inside, ri, 0), np.where(inside, ti, 0)],
+                                           order=1), 0.0)
     return (x, z, img, inside) if with_mask else (x, z, img)
-
-
-def _bilinear(values, i, j):
-    """``values`` (n0, n1), n0, n1 ≥ 1, at fractional indices ``i``, ``j`` (any shape, each
-    within [0, n - 1] of its axis) by bilinear interpolation: ``scipy.ndimage.map_coordinates``
-    at ``order=1`` there, written out so that the figure helper never imports scipy (≈ 0.25 s
-    of its start), as fast (four flat gathers, updated in place)."""
-    values = np.asarray(values, float)
-    i, j = np.asarray(i, float), np.asarray(j, float)
-    n0, n1 = values.shape
-    i0 = np.minimum(i.astype(np.intp), max(n0 - 2, 0))
-    j0 = np.minimum(j.astype(np.intp), max(n1 - 2, 0))
-    fi, fj = i - i0, j - j0
-    k = i0 * n1
-    k += j0
-    flat = np.ascontiguousarray(values).ravel()
-    di, dj = (n1 if n0 > 1 else 0), (1 if n1 > 1 else 0)
-    near, far = flat.take(k), flat.take(k + dj)
-    far -= near
-    far *= fj
-    near += far                 # along j, row i0
-    low, high = flat.take(k + di), flat.take(k + di + dj)
-    high -= low
-    high *= fj
-    low += high                 # along j, row i0 + 1
-    low -= near
-    low *= fi
-    near += low                 # along i
-    return near
 
 
 def _db(x, ref):
