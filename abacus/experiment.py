@@ -290,17 +290,20 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
     scene : Scene
     out_dir : str or Path
         Output folder: ``results.nc`` (or ``.zarr``), ``report.html``, ``figures/``, ``parts/``.
-    pings : iterable of int, optional
-        Default the scene's pings.
+    pings : int or iterable of int, optional
+        Default the scene's pings; an int ``n``: the scene's first ``n`` pings (as
+        :func:`acoustics.simulate` reads it).
     sweep : Sweep, optional
     workers : int, optional
         Local Dask workers (processes); 0 runs in this process without Dask; default the
         fastest layout for this machine (:func:`plan_workers`).
     scheduler : str, optional
-        Address of an existing Dask scheduler (its workers need abacus installed).
+        Address of an existing Dask scheduler (its workers need abacus installed). Workers
+        and schedulers need the extra ``experiment`` (dask[distributed]); in process, nothing.
     figure_pings : int
         How many of the first pings get a fan-beam figure with detections.
     fmt : {"netcdf", "zarr"}
+        Zarr needs the extra ``zarr``.
     restart : bool
         Discard the parts of an earlier run in ``out_dir``.
     progress : callable(done, total), optional
@@ -309,14 +312,29 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
     -------
     Path
         The results dataset.
+
+    Raises
+    ------
+    ExperimentError
+        Bad arguments, or a folder holding another experiment.
+    processing.base.extras.MissingExtra
+        An extra this run needs (Dask, Zarr) is not installed.
     """
     out = Path(out_dir)
     n_workers, threads = plan_workers(workers, scheduler)   # a bad count fails before any write
+    if isinstance(pings, int) and not isinstance(pings, bool):
+        pings = range(scene.pings.first, scene.pings.first + max(pings, 0))
     pings = list(range(scene.pings.first, scene.pings.first + scene.pings.count)) if pings is None else list(pings)
     if not pings:
         raise ExperimentError("an experiment needs at least one ping")
     if fmt not in ("netcdf", "zarr"):
         raise ExperimentError(f"format must be netcdf or zarr, got {fmt!r}")
+    # the optional extras this run needs, checked before any work (MissingExtra names them)
+    from processing.base.extras import require
+    if n_workers or scheduler:
+        require("dask.distributed", "an experiment on Dask workers (--workers, --scheduler)")
+    if fmt == "zarr":
+        require("zarr", "an experiment's results as Zarr")
     points = experiment_plan(scene, sweep)
     man = _manifest(points, sweep)
     _check_folder(out, man, restart)

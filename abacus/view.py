@@ -84,8 +84,11 @@ def _into_built(view, x):
 
 def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, interactive: bool = False,
                  window_size=(1400, 1000)):
-    """Draw the scene; write a PNG when ``output`` is given. Returns the output path (or None)."""
-    import pyvista as pv
+    """Draw the scene; write a PNG when ``output`` is given. Returns the output path (or None).
+
+    Raises :class:`processing.base.extras.MissingExtra` without pyvista (the extra ``view``)."""
+    from processing.base.extras import require
+    pv = require("pyvista", "abacus view")
 
     from acoustics.simulation.setup import counting_volume_of, make_setup
     from acoustics.targets.draw import draw_targets

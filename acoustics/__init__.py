@@ -12,7 +12,7 @@ The stages, one sub-package each (docs/architecture.md)::
 Public surface (docs/api.md; imported on first use, so ``import acoustics`` is cheap)::
 
     load_scene(path) -> Scene                  # raises SceneError
-    simulate(scene, *, pings=None, seed=None) -> xarray.DataTree
+    simulate(scene, *, pings=None, seed=None) -> xarray.DataTree   # scene: a Scene, path or name; pings: n or indices
     beamwidth(array, *, plane, level_db=-3.0, medium=None) -> float (rad)
     Medium, ElementArray, abacus_transmitter, abacus_receiver, build_sonar, ...
 """

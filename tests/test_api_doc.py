@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import re
+import shutil
 
 from .conftest import ROOT
 
@@ -10,8 +11,10 @@ def test_api_tour_runs_verbatim(tmp_path, monkeypatch):
     text = (ROOT / "docs" / "api.md").read_text()
     blocks = re.findall(r"```python\n(.*?)```", text, re.S)
     assert len(blocks) >= 5
-    monkeypatch.chdir(tmp_path)          # an empty folder, as a new user's
+    # a new user's folder, with the scene files of a checkout (the page loads one by its path)
+    shutil.copytree(ROOT / "scenes", tmp_path / "scenes")
+    monkeypatch.chdir(tmp_path)
     namespace: dict = {}
     for i, block in enumerate(blocks):
         exec(compile(block, f"docs/api.md block {i + 1}", "exec"), namespace)
-    assert (tmp_path / "two.nc").is_file()
+    assert (tmp_path / "two.nc").is_file() and (tmp_path / "exp" / "results.nc").is_file()

@@ -180,7 +180,11 @@ def main(argv=None) -> int:
     a documented exit status, never a traceback.
 
     ``argv`` None: the process' own command line (``abacus ...``, ``python -m acoustics``)."""
-    code = _command(argv)
+    from abacus.clash import foreign_packages
+    clash = foreign_packages()   # PyPI's acoustics / processing in our place (README, install)
+    if clash:
+        print(f"error: {clash}", file=sys.stderr)
+    code = EXIT_USAGE if clash else _command(argv)
     return code
 
 
@@ -206,12 +210,21 @@ def _command(argv) -> int:
                           ("acoustics.paths.meshes", "MeshError"))
         warnings.showwarning = _show_warning
         try:
+            from abacus.cli.extras import check_extras
+            check_extras(args)       # the extras the arguments call for, before any work
             return int(args.func(args) or 0)
         except loaded(("processing.base.resources", "ResourceError")) as exc:
             print(f"error: {exc}", file=sys.stderr)
             return EXIT_RESOURCES
         except user_errors() as exc:
             print(f"error: {exc}", file=sys.stderr)
+            return EXIT_USAGE
+        except ImportError as exc:   # an optional extra not installed: one line naming it
+            from processing.base.extras import missing_extra
+            missing = missing_extra(exc, f"abacus {args.command}")
+            if missing is None:
+                raise
+            print(f"error: {missing}", file=sys.stderr)
             return EXIT_USAGE
         except BrokenPipeError:
             raise

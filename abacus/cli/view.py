@@ -17,11 +17,8 @@ def add_parser(sub):
 
 
 def command(args) -> int:
-    try:
-        import pyvista  # noqa: F401  (an optional dependency: the `view` extra)
-    except ImportError:
-        raise UsageError("abacus view needs pyvista, an optional dependency: "
-                         "python -m pip install 'abacus[view]'") from None
+    from processing.base.extras import require
+    require("pyvista", "abacus view")     # the extra `view`: one line naming it, exit status 2
     from abacus.view import render_scene
     if args.output:
         check_output(args.output, overwrite=args.overwrite)

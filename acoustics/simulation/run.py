@@ -18,6 +18,9 @@ scene without meshes never builds a ray caster, a quiet one has no ``noise`` sta
 """
 from __future__ import annotations
 
+import numbers
+import os
+
 import numpy as np
 import xarray as xr
 
@@ -35,11 +38,14 @@ def simulate(scene, *, pings=None, seed: int | None = None, progress=None):
 
     Parameters
     ----------
-    scene : Scene
-        From :func:`acoustics.load_scene`.
-    pings : iterable of int, optional
-        Ping indices; default ``scene.pings`` (first .. first + count − 1). Each ping depends
-        only on (seed, ping index), so any subset or order gives the same pings.
+    scene : Scene, str or Path
+        From :func:`acoustics.load_scene`, or what it takes: a scene file's path or a built-in
+        scene's name (``"two_targets"``).
+    pings : int or iterable of int, optional
+        Ping indices; default ``scene.pings`` (first .. first + count − 1). An int ``n``: the
+        scene's first ``n`` pings (first .. first + n − 1, as ``abacus run --pings n``), i.e.
+        ``range(n)`` for a scene that starts at ping 0. Each ping depends only on (seed, ping
+        index), so any subset or order gives the same pings.
     seed : int, optional
         Overrides ``scene.seed``.
     progress : callable(done, total), optional
@@ -58,12 +64,20 @@ def simulate(scene, *, pings=None, seed: int | None = None, progress=None):
     >>> tree = acoustics.simulate(scene, pings=range(2), seed=7)
     >>> tree["Sonar/Beam_group1"]["backscatter_r"].dims
     ('channel', 'ping_time', 'range_sample', 'beam')
+    >>> tree = acoustics.simulate("scenes/two_targets.yaml", pings=2)   # a path, 2 pings
     """
+    if isinstance(scene, (str, os.PathLike)):
+        from acoustics.scene.load import load_scene
+        scene = load_scene(scene)
     seed = scene.seed if seed is None else int(seed)
     if seed < 0:
         raise ValueError(f"seed must be >= 0, got {seed}")
     if pings is None:
         pings = range(scene.pings.first, scene.pings.first + scene.pings.count)
+    elif isinstance(pings, numbers.Integral) and not isinstance(pings, bool):
+        if pings < 1:
+            raise ValueError(f"pings must be >= 1 (a number of pings) or ping indices, got {pings}")
+        pings = range(scene.pings.first, scene.pings.first + int(pings))
     pings = [int(p) for p in pings]
     if any(p < 0 for p in pings):
         raise ValueError("ping indices must be >= 0")

@@ -13,6 +13,9 @@ speed over the track's pings) and TS error (track TS − the fish's mean σ_bs o
 detection was compensated, both in dB); and the run's true number of fish that passed through the
 counting volume (distinct identities ever inside it). HOTA is not in motmetrics; it is left out
 rather than hand-written.
+
+py-motmetrics is the optional extra ``metrics``: without it, scoring raises
+:class:`processing.base.extras.MissingExtra`, which names the extra.
 """
 from __future__ import annotations
 
@@ -28,7 +31,8 @@ MOT_METRICS = ("mota", "motp", "idf1", "num_switches", "num_fragmentations", "mo
 def _mot(ds, truth, volume_inside_truth, max_distance_m, row_of_ping_index):
     import warnings
 
-    import motmetrics as mm
+    from processing.base.extras import require
+    mm = require("motmetrics", "scoring tracks against the truth (MOTA, IDF1)")
     acc = mm.MOTAccumulator(auto_id=False)
     tp = truth["target_ping_index"].astype(int)
     pts_ping = ds["point_ping_index"].values.astype(int)
