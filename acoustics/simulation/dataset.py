@@ -1,4 +1,8 @@
-"""Assemble a simulation into the data contract of processing.base.dataset (SONAR-netCDF4 flavour)."""
+"""Assemble a simulation into the data contract (SONAR-netCDF4 1.0; processing/base/contract.py).
+
+Values only: every group is made by :func:`processing.base.groups.build_group`, which takes the
+dimensions, units and attributes of each variable from the contract's table.
+"""
 from __future__ import annotations
 
 import datetime as _dt
@@ -9,23 +13,22 @@ import sys
 import numpy as np
 import xarray as xr
 
-from processing.base.dataset import CONVENTIONS, ELEMENT_GROUP, TRUTH_GROUP, split_complex
+from processing.base.contract import (BEAM_GROUP_NAME, CHANNEL, ELEMENT_GROUP, ENVIRONMENT_GROUP, PLATFORM_GROUP,
+                                      PROVENANCE_GROUP, ROOT_GROUP, SONAR_GROUP, TRUTH_GROUP)
+from processing.base.groups import build_group, complex_pair, per_beam, per_ping, tree_of
 
 from acoustics.frames import cartesian_to_spherical
 from acoustics.sonar.calibration import sonar_calibration
 
 __all__ = ["build_tree", "beam_group", "provenance_dataset", "versions", "rays_cast", "CHANNEL"]
 
-#: the one SONAR-netCDF4 channel of a run: the receiver; its elements are the beams
-CHANNEL = "abacus-receiver"
 
+def _element_geometry(elements, prefix: str) -> dict:
+    """``<prefix>_x/_y/_z/_width/_height/_rotation`` of an ElementArray."""
+    return {f"{prefix}_x": elements.center_m[:, 0], f"{prefix}_y": elements.center_m[:, 1],
+            f"{prefix}_z": elements.center_m[:, 2], f"{prefix}_width": elements.width_m,
+            f"{prefix}_height": elements.height_m, f"{prefix}_rotation": elements.rotation_rad}
 
-def _element_geometry(elements, prefix: str, dim: str) -> dict:
-    """``<prefix>_x/_y/_z/_width/_height/_rotation`` of an ElementArray along ``dim``."""
-    cols = {"x": (elements.center_m[:, 0], "m"), "y": (elements.center_m[:, 1], "m"),
-            "z": (elements.center_m[:, 2], "m"), "width": (elements.width_m, "m"),
-            "height": (elements.height_m, "m"), "rotation": (elements.rotation_rad, "rad")}
-    return {f"{prefix}_{k}": xr.DataArray(v, dims=dim, attrs={"units": u}) for k, (v, u) in cols.items()}
 
 def versions() -> dict:
     """Versions of everything that shapes the numbers."""
@@ -38,13 +41,28 @@ def versions() -> dict:
 
 
 def provenance_dataset(scene, seed: int, log, rays_cast: dict | None = None) -> xr.Dataset:
-    """/Provenance: resolved scene, its sha256, the seed, versions, stages and their times."""
+    """/Provenance: resolved scene, its sha256, the seed, versions, stages and their times.
+
+    Parameters
+    ----------
+    scene : Scene
+    seed : int
+    log : StageLog
+        The stages that ran, their calls and wall times (s).
+    rays_cast : dict, optional
+        Rays cast per purpose.
+
+    Returns
+    -------
+    xarray.Dataset
+        ``stage_seconds`` (s) and ``stage_calls`` along ``stage``; the rest as attributes.
+    """
     names = log.names
-    return xr.Dataset(
-        {"stage_seconds": xr.DataArray(np.array([log.seconds[k] for k in names]), dims="stage",
-                                       attrs={"units": "s", "long_name": "wall time per stage"}),
-         "stage_calls": xr.DataArray(np.array([log.calls[k] for k in names]), dims="stage")},
-        coords={"stage": np.array(names, dtype=str)},
+    return build_group(
+        PROVENANCE_GROUP,
+        {"stage_seconds": np.array([log.seconds[k] for k in names]),
+         "stage_calls": np.array([log.calls[k] for k in names]),
+         "stage": np.array(names, dtype=str)},
         attrs={"scene_text": scene.resolved_text(), "scene_sha256": scene.sha256(),
                "scene_file": str(scene.source_path or ""), "seed": int(seed),
                "stages_run": ",".join(names), "versions": json.dumps(versions()),
@@ -59,7 +77,31 @@ def _ping_times(scene, pings):
 
 
 def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.DataTree:
-    """The DataTree of one simulation run (see processing.base.dataset for the layout)."""
+    """The DataTree of one simulation run, every group made by the contract's builder
+    (processing/base/contract.py has the layout).
+
+    Parameters
+    ----------
+    scene : Scene
+    setup : Setup
+        What :func:`acoustics.simulation.setup.make_setup` made of the scene.
+    pings : sequence of int, length n_pings
+        The scene's ping indices.
+    samples : (ndarray, ndarray)
+        I and Q, each float32 of shape (n_pings, n_samples, n_elements) (ADC counts); wrapped,
+        not copied.
+    clipped : ndarray of int, shape (n_pings, n_elements), or None
+        Samples the ADC clipped per element (None when it does not quantise).
+    truth : list of TargetSet, length n_pings
+        The targets of each ping.
+    log : StageLog
+    seed : int
+
+    Returns
+    -------
+    xarray.DataTree
+        /, /Environment, /Platform, /Provenance, /Sonar, /Sonar/Beam_group1, /Vendor_specific.
+    """
     sonar, medium, pulse = setup.sonar, setup.medium, setup.pulse
     s = scene.sampling
     ping_time = _ping_times(scene, pings)
@@ -69,96 +111,54 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.Da
     now = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()
 
     model = "ABACUS" if scene.sonar.preset == "abacus" else "custom"
-    root = xr.Dataset(attrs={
-        # SONAR-netCDF4 1.0 (ICES CRR 341) top level; echopype reads ``keywords`` as the sonar model
-        "conventions": CONVENTIONS, "sonar_convention_authority": "ICES",
-        "sonar_convention_name": "SONAR-netCDF4", "sonar_convention_version": "1.0",
+    # SONAR-netCDF4 1.0 (ICES CRR 341) top level (the convention's names are the contract's);
+    # echopype reads ``keywords`` as the sonar model
+    root = build_group(ROOT_GROUP, {}, attrs={
         "keywords": model,
         "title": f"abacus simulation: {scene.name}", "summary": scene.description.strip() or scene.name,
         "date_created": now, "software_name": "abacus",
         "software_version": versions()["abacus"], "data_kind": "simulated"})
 
-    env = xr.Dataset({
-        "sound_speed_indicative": xr.DataArray(medium.sound_speed_m_s, attrs={"units": "m/s"}),
-        "absorption_indicative": xr.DataArray([medium.absorption_db_per_m], dims="frequency",
-                                              attrs={"units": "dB/m", "long_name": "indicative absorption "
-                                                     "at the transmit centre frequency"}),
-        "temperature": xr.DataArray(medium.temperature_c, attrs={"units": "degree_Celsius"}),
-        "salinity": xr.DataArray(medium.salinity_psu, attrs={"units": "PSU"}),
-        "depth": xr.DataArray(medium.depth_m, attrs={"units": "m", "long_name": "depth at which absorption was evaluated"}),
-        "ph": xr.DataArray(medium.ph)},
-        coords={"frequency": xr.DataArray([pulse.center_frequency_hz], dims="frequency", attrs={"units": "Hz"})})
+    env = build_group(ENVIRONMENT_GROUP, {
+        "sound_speed_indicative": medium.sound_speed_m_s,
+        "absorption_indicative": [medium.absorption_db_per_m],
+        "temperature": medium.temperature_c, "salinity": medium.salinity_psu,
+        "depth": medium.depth_m, "ph": medium.ph,
+        "frequency": [pulse.center_frequency_hz]})
 
-    pose = sonar.pose
-    platform_ds = xr.Dataset({
-        "sonar_position": xr.DataArray(pose.position_m, dims="world_axis",
-                                       attrs={"units": "m", "long_name": "sonar-frame origin in the world frame (x forward, y starboard, z down)"}),
-        "sonar_rotation": xr.DataArray(pose.rotation, dims=("world_axis", "sonar_axis"),
-                                       attrs={"long_name": "columns: sonar axes x_s, y_s, z_s in world coordinates"})},
-        coords={"world_axis": ["x", "y", "z"], "sonar_axis": ["x", "y", "z"]})
-    for k, a in enumerate("xyz"):   # SONAR-netCDF4's transducer offset: the sonar at rest
-        platform_ds[f"transducer_offset_{a}"] = xr.DataArray(
-            [pose.position_m[k]], dims="channel", coords={"channel": [CHANNEL]},
-            attrs={"units": "m", "long_name": f"transducer {a} offset from the platform origin"})
-    if setup.platform is not None:
-        # a moving platform: the pose of every ping, and the attitude it came from
-        poses = [setup.pose_at(p) for p in pings]
-        roll, pitch, yaw, heave = setup.platform.attitude(np.asarray(pings, float) * setup.interval_s)
-        platform_ds["ping_sonar_position"] = xr.DataArray(
-            np.stack([q.position_m for q in poses]), dims=("ping_time", "world_axis"),
-            attrs={"units": "m", "long_name": "sonar-frame origin in the world frame, per ping"})
-        platform_ds["ping_sonar_rotation"] = xr.DataArray(
-            np.stack([q.rotation for q in poses]), dims=("ping_time", "world_axis", "sonar_axis"),
-            attrs={"long_name": "columns: sonar axes in world coordinates, per ping"})
-        for name, v, units in (("roll", roll, "arc_degree"), ("pitch", pitch, "arc_degree"),
-                               ("heading", yaw, "arc_degree"), ("vertical_offset", heave, "m")):
-            vv = np.degrees(v) if units == "arc_degree" else np.asarray(v, float)
-            platform_ds[name] = xr.DataArray(np.broadcast_to(vv, (len(pings),)).copy(), dims="ping_time",
-                                             attrs={"units": units, "long_name": {
-                                                 "roll": "roll, starboard down positive",
-                                                 "pitch": "pitch, bow up positive",
-                                                 "heading": "yaw (heading change), clockwise from above positive",
-                                                 "vertical_offset": "heave, positive up"}[name]})
-        platform_ds = platform_ds.assign_coords(ping_time=_ping_times(scene, pings))
-        platform_ds.attrs["mount"] = ("sonar_position/sonar_rotation: the mounting pose at rest; "
-                                      "ping_sonar_*: the pose of each ping")
+    platform_ds = build_group(PLATFORM_GROUP, _platform(setup, pose=sonar.pose, pings=pings, scene=scene),
+                              attrs=None if setup.platform is None else {"mount": (
+                                  "sonar_position/sonar_rotation: the mounting pose at rest; "
+                                  "ping_sonar_*: the pose of each ping")})
 
     tx = sonar.transmitter
     replica = pulse.replica(s.rate_hz)
     cal_gain, cal_az, cal_width = sonar_calibration(
         tx, sonar.receiver.elements, wavenumber_rad_m=setup.model.wavenumber_rad_m,
         scale_counts=setup.model.scale_counts)
-    sonar_ds = xr.Dataset(
-        {"transmit_frequency_start": xr.DataArray(pulse.center_frequency_hz - np.sign(pulse.chirp_rate_hz_s or 1) * pulse.bandwidth_hz / 2, attrs={"units": "Hz"}),
-         "transmit_frequency_stop": xr.DataArray(pulse.center_frequency_hz + np.sign(pulse.chirp_rate_hz_s or 1) * pulse.bandwidth_hz / 2, attrs={"units": "Hz"}),
-         "transmit_frequency_center": xr.DataArray(pulse.center_frequency_hz, attrs={"units": "Hz"}),
-         "transmit_bandwidth": xr.DataArray(pulse.bandwidth_hz, attrs={"units": "Hz"}),
-         "transmit_duration_nominal": xr.DataArray(pulse.duration_s, attrs={"units": "s"}),
-         "beamwidth_transmit_major": xr.DataArray(np.degrees(setup.tx_beamwidth_az_rad),
-                                                  attrs={"units": "arc_degree", "long_name": "transmit 3 dB beamwidth in azimuth (sonar x-z plane)"}),
-         "beamwidth_transmit_minor": xr.DataArray(np.degrees(setup.tx_beamwidth_el_rad),
-                                                  attrs={"units": "arc_degree", "long_name": "transmit 3 dB beamwidth in elevation"}),
-         **split_complex("replica", replica, ("replica_sample",),
-                         {"long_name": "transmit pulse u(j/fs), complex baseband", "units": "1"}),
-         **_element_geometry(tx, "tx_element", "tx_element"),
-         "tx_element_weight": xr.DataArray(tx.weight, dims="tx_element"),
-         "calibration_gain": xr.DataArray(cal_gain, attrs={
-             "units": "counts m", "long_name": "G = k S: image peak of a target of backscatter "
-             "amplitude 1 m at 1 m on the transmit axis (see acoustics/calibration.py)"}),
-         "beam_group_name": xr.DataArray(["Beam_group1"], dims="beam_group"),
-         "beam_group_descr": xr.DataArray(
-             ["complex baseband samples of every receive element: one beam per element "
-              "(docs/dataset.md, 'Beams are elements')"], dims="beam_group"),
-         "two_way_elevation_width": xr.DataArray(cal_width, dims="calibration_azimuth", attrs={
-             "units": "rad", "long_name": "integral over elevation of |E_t|^2 |D_rx|^2 cos(elevation), "
-             "per azimuth: the sonar's part of echo integration's equivalent beam"})},
-        coords={"channel_all": [CHANNEL], "beam_group": ["Beam_group1"], "replica_sample": np.arange(replica.size),
-                "calibration_azimuth": xr.DataArray(cal_az, dims="calibration_azimuth",
-                                                    attrs={"units": "rad"})},
-        attrs={"transmit_type": "LFM", "taper": pulse.taper, "sweep": pulse.sweep,
+    start, stop = _sweep_hz(pulse)
+    sonar_ds = build_group(
+        SONAR_GROUP,
+        {"transmit_frequency_start": start, "transmit_frequency_stop": stop,
+         "transmit_frequency_center": pulse.center_frequency_hz,
+         "transmit_bandwidth": pulse.bandwidth_hz,
+         "transmit_duration_nominal": pulse.duration_s,
+         "beamwidth_transmit_major": np.degrees(setup.tx_beamwidth_az_rad),
+         "beamwidth_transmit_minor": np.degrees(setup.tx_beamwidth_el_rad),
+         **complex_pair("replica", replica),
+         **_element_geometry(tx, "tx_element"),
+         "tx_element_weight": tx.weight,
+         "calibration_gain": cal_gain,
+         "beam_group_name": [BEAM_GROUP_NAME],
+         "beam_group_descr": ["complex baseband samples of every receive element: one beam per element "
+                              "(docs/dataset.md, 'Beams are elements')"],
+         "two_way_elevation_width": cal_width,
+         "channel_all": [CHANNEL], "beam_group": [BEAM_GROUP_NAME], "replica_sample": np.arange(replica.size),
+         "calibration_azimuth": cal_az},
+        attrs={"taper": pulse.taper, "sweep": pulse.sweep,
                "sonar_manufacturer": "abacus (simulated)", "sonar_model": model,
                "sonar_serial_number": "", "sonar_software_name": "abacus",
-               "sonar_software_version": versions()["abacus"], "sonar_type": "multibeam",
+               "sonar_software_version": versions()["abacus"],
                "variant": scene.sonar.variant if scene.sonar.preset == "abacus" else "explicit",
                "mode": rx.mode, "frame": "sonar frame: +z boresight, +x along the receiver, +y along the transmitter"})
 
@@ -166,11 +166,35 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.Da
                     psi_element_sr=float(np.trapezoid(cal_width, cal_az)))
 
     truth_ds = _truth(setup, pings, ping_time, truth)
-    tree = xr.DataTree.from_dict({
-        "/": root, "/Environment": env, "/Platform": platform_ds,
-        "/Provenance": provenance_dataset(scene, seed, log, rays_cast(setup)), "/Sonar": sonar_ds,
-        f"/{ELEMENT_GROUP}": eg, f"/{TRUTH_GROUP}": truth_ds})
-    return tree
+    return tree_of({ROOT_GROUP: root, ENVIRONMENT_GROUP: env, PLATFORM_GROUP: platform_ds,
+                    PROVENANCE_GROUP: provenance_dataset(scene, seed, log, rays_cast(setup)),
+                    SONAR_GROUP: sonar_ds, ELEMENT_GROUP: eg, TRUTH_GROUP: truth_ds})
+
+
+def _sweep_hz(pulse) -> tuple:
+    """Start and stop frequencies (Hz) of the pulse's sweep (down-chirps start high)."""
+    half = np.sign(pulse.chirp_rate_hz_s or 1) * pulse.bandwidth_hz / 2
+    return pulse.center_frequency_hz - half, pulse.center_frequency_hz + half
+
+
+def _platform(setup, *, pose, pings, scene) -> dict:
+    """/Platform's values: the mounting pose and transducer offsets and, for a moving platform,
+    the pose of every ping and the attitude (deg) and heave (m) it came from."""
+    values = {"sonar_position": pose.position_m, "sonar_rotation": pose.rotation,
+              "world_axis": ["x", "y", "z"], "sonar_axis": ["x", "y", "z"], "channel": [CHANNEL]}
+    for k, a in enumerate("xyz"):   # SONAR-netCDF4's transducer offset: the sonar at rest
+        values[f"transducer_offset_{a}"] = [pose.position_m[k]]
+    if setup.platform is None:
+        return values
+    poses = [setup.pose_at(p) for p in pings]
+    roll, pitch, yaw, heave = setup.platform.attitude(np.asarray(pings, float) * setup.interval_s)
+    values["ping_sonar_position"] = np.stack([q.position_m for q in poses])
+    values["ping_sonar_rotation"] = np.stack([q.rotation for q in poses])
+    for name, v in (("roll", np.degrees(roll)), ("pitch", np.degrees(pitch)), ("heading", np.degrees(yaw)),
+                    ("vertical_offset", np.asarray(heave, float))):
+        values[name] = np.broadcast_to(v, (len(pings),)).copy()
+    values["ping_time"] = _ping_times(scene, pings)
+    return values
 
 
 def _element_beamwidth_deg(size_m, wavelength_m):
@@ -183,7 +207,22 @@ def beam_group(scene, setup, pings, ping_time, samples, clipped, chan_names, *, 
     """/Sonar/Beam_group1: the per-element samples as SONAR-netCDF4 lays out complex data in
     echopype (``backscatter_r/_i`` on (channel, ping_time, range_sample, beam)), one channel (the
     receiver) whose beams are its elements, with the beam-group variables of the convention and
-    the element geometry processing needs."""
+    the element geometry processing needs.
+
+    Parameters
+    ----------
+    scene, setup, pings, samples, clipped
+        As :func:`build_tree` takes them.
+    ping_time : ndarray of datetime64[ns], shape (n_pings,)
+    chan_names : ndarray of str, shape (n_elements,)
+        Element names (``A0`` ... ``B15``).
+    psi_element_sr : float
+        Two-way equivalent solid angle of the transmitter and one element (sr).
+
+    Returns
+    -------
+    xarray.Dataset
+    """
     sonar, pulse = setup.sonar, setup.pulse
     s = scene.sampling
     rx = sonar.receiver
@@ -193,64 +232,43 @@ def beam_group(scene, setup, pings, ping_time, samples, clipped, chan_names, *, 
     rot = sonar.pose.rotation
     # each element faces the sonar's +z (rotations are about z): its direction in the platform frame
     direction = np.broadcast_to(rot @ np.array([0.0, 0.0, 1.0]), (el.n_elements, 3))
-    per_ping = lambda v: xr.DataArray(np.full((1, n_p), float(v)), dims=("channel", "ping_time"))
-    per_beam = lambda v: xr.DataArray(np.asarray(v, float)[None, :], dims=("channel", "beam"))
-    # the samples are already float32 (ping_time, range_sample, beam) planes: wrapped, not copied,
-    # and written as they are (a transposed view would be copied whole by the writer)
-    attrs = {"units": "ADC counts", "long_name": "complex baseband samples per receive element"}
-    pair = {f"backscatter_{k}": xr.DataArray(v[None], dims=("channel", "ping_time", "range_sample", "beam"),
-                                             attrs=dict(attrs))
-            for k, v in zip("ri", samples)}
-    start = pulse.center_frequency_hz - np.sign(pulse.chirp_rate_hz_s or 1) * pulse.bandwidth_hz / 2
-    stop = pulse.center_frequency_hz + np.sign(pulse.chirp_rate_hz_s or 1) * pulse.bandwidth_hz / 2
-    eg = xr.Dataset(
-        {**pair,
-         "beam_type": xr.DataArray(["single"], dims="channel",
-                                   attrs={"long_name": "each beam is one element's own (unsteered) beam"}),
-         "beam_direction_x": per_beam(direction[:, 0]), "beam_direction_y": per_beam(direction[:, 1]),
-         "beam_direction_z": per_beam(direction[:, 2]),
-         "beamwidth_receive_major": per_beam(_element_beamwidth_deg(el.width_m, lam)),
-         "beamwidth_receive_minor": per_beam(_element_beamwidth_deg(el.height_m, lam)),
-         "beamwidth_transmit_major": per_beam(np.full(el.n_elements, np.degrees(setup.tx_beamwidth_az_rad))),
-         "beamwidth_transmit_minor": per_beam(np.full(el.n_elements, np.degrees(setup.tx_beamwidth_el_rad))),
-         "equivalent_beam_angle": per_beam(np.full(el.n_elements, 10 * np.log10(psi_element_sr))),
-         "sample_interval": per_ping(1.0 / s.rate_hz),
-         "blanking_interval": per_ping(s.time_offset_s),
-         "sample_time_offset": per_ping(0.0),
-         "transmit_frequency_start": per_ping(start), "transmit_frequency_stop": per_ping(stop),
-         "transmit_duration_nominal": per_ping(pulse.duration_s),
-         "transmit_bandwidth": per_ping(pulse.bandwidth_hz),
-         "transmit_type": xr.DataArray(["LFM"], dims="channel"),
-         "beam_stabilisation": xr.DataArray(np.zeros(n_p, np.int8), dims="ping_time"),
-         "non_quantitative_processing": xr.DataArray(np.zeros(n_p, np.int16), dims="ping_time"),
-         **_element_geometry(el, "element", "beam"),
-         "element_subarray": xr.DataArray(rx.channel_subarray.astype(str), dims="beam"),
-         "element_index_in_subarray": xr.DataArray(np.array([i for _, i in rx.channels]), dims="beam")},
-        coords={"channel": [CHANNEL], "ping_time": ping_time,
-                "ping_index": ("ping_time", np.asarray(pings, np.int64)),
-                "range_sample": np.arange(s.samples), "beam": chan_names},
+    start, stop = _sweep_hz(pulse)
+    values = {
+        # the samples are already float32 (ping_time, range_sample, beam) planes: wrapped, not
+        # copied, and written as they are (a transposed view would be copied whole by the writer)
+        **{f"backscatter_{k}": v[None] for k, v in zip("ri", samples)},
+        "beam_type": ["single"],
+        "beam_direction_x": per_beam(direction[:, 0]), "beam_direction_y": per_beam(direction[:, 1]),
+        "beam_direction_z": per_beam(direction[:, 2]),
+        "beamwidth_receive_major": per_beam(_element_beamwidth_deg(el.width_m, lam)),
+        "beamwidth_receive_minor": per_beam(_element_beamwidth_deg(el.height_m, lam)),
+        "beamwidth_transmit_major": per_beam(np.full(el.n_elements, np.degrees(setup.tx_beamwidth_az_rad))),
+        "beamwidth_transmit_minor": per_beam(np.full(el.n_elements, np.degrees(setup.tx_beamwidth_el_rad))),
+        "equivalent_beam_angle": per_beam(np.full(el.n_elements, 10 * np.log10(psi_element_sr))),
+        "sample_interval": per_ping(1.0 / s.rate_hz, n_p),
+        "blanking_interval": per_ping(s.time_offset_s, n_p),
+        "sample_time_offset": per_ping(0.0, n_p),
+        "transmit_frequency_start": per_ping(start, n_p), "transmit_frequency_stop": per_ping(stop, n_p),
+        "transmit_duration_nominal": per_ping(pulse.duration_s, n_p),
+        "transmit_bandwidth": per_ping(pulse.bandwidth_hz, n_p),
+        "transmit_type": ["LFM"],
+        "beam_stabilisation": np.zeros(n_p, np.int8),
+        "non_quantitative_processing": np.zeros(n_p, np.int16),
+        **_element_geometry(el, "element"),
+        "element_subarray": rx.channel_subarray.astype(str),
+        "element_index_in_subarray": np.array([i for _, i in rx.channels]),
+        "channel": [CHANNEL], "ping_time": ping_time, "ping_index": np.asarray(pings, np.int64),
+        "range_sample": np.arange(s.samples), "beam": chan_names}
+    if clipped is not None:
+        values["adc_clipped_samples"] = clipped
+    return build_group(
+        ELEMENT_GROUP, values,
         attrs={"mode": rx.mode, "adc_scale_counts": s.adc.scale_counts,
                "adc_quantized": int(s.adc.quantize), "adc_bits": s.adc.bits,
                "noise_enabled": int(scene.noise.enabled), "noise_sigma_counts": scene.noise.sigma_counts,
                "noise_bandwidth_hz": scene.noise.bandwidth_hz,
                "receiver_bandwidth_hz": s.receiver_bandwidth_hz, "beam_mode": "vertical",
                "conversion_equation_type": "none: samples are complex baseband in ADC counts"})
-    units = {"beam_direction_x": "1", "beam_direction_y": "1", "beam_direction_z": "1",
-             "beamwidth_receive_major": "arc_degree", "beamwidth_receive_minor": "arc_degree",
-             "beamwidth_transmit_major": "arc_degree", "beamwidth_transmit_minor": "arc_degree",
-             "equivalent_beam_angle": "dB re 1 sr", "sample_interval": "s", "blanking_interval": "s",
-             "sample_time_offset": "s", "transmit_frequency_start": "Hz", "transmit_frequency_stop": "Hz",
-             "transmit_duration_nominal": "s", "transmit_bandwidth": "Hz"}
-    for k, u in units.items():
-        eg[k].attrs["units"] = u
-    eg["blanking_interval"].attrs["long_name"] = "time of sample 0 after the start of transmission"
-    eg["equivalent_beam_angle"].attrs["long_name"] = ("10 log10 of the two-way equivalent solid angle "
-                                                      "of the transmitter and one element")
-    eg["beam_direction_x"].attrs["long_name"] = "beam (element normal) direction in the platform frame"
-    if clipped is not None:
-        eg["adc_clipped_samples"] = xr.DataArray(clipped, dims=("ping_time", "beam"),
-                                                 attrs={"long_name": "samples clipped by the ADC (I or Q)"})
-    return eg
 
 
 def rays_cast(setup) -> dict:
@@ -283,37 +301,23 @@ def _truth(setup, pings, ping_time, truth) -> xr.Dataset:
     with np.errstate(divide="ignore"):
         ts = np.where(rho > 0, 20 * np.log10(np.where(rho > 0, rho, 1.0)), -np.inf)
     per_ping_in = np.array([int(v.sum()) for v in np.split(inside, np.cumsum(n)[:-1])]) if truth else np.zeros(0, int)
-    ds = xr.Dataset(
-        {"target_ping_index": xr.DataArray(ping_of, dims="target"),
-         "target_x": xr.DataArray(ps[:, 0], dims="target", attrs={"units": "m", "frame": "sonar"}),
-         "target_y": xr.DataArray(ps[:, 1], dims="target", attrs={"units": "m", "frame": "sonar"}),
-         "target_z": xr.DataArray(ps[:, 2], dims="target", attrs={"units": "m", "frame": "sonar"}),
-         "target_world_x": xr.DataArray(pw[:, 0], dims="target", attrs={"units": "m", "frame": "world"}),
-         "target_world_y": xr.DataArray(pw[:, 1], dims="target", attrs={"units": "m", "frame": "world"}),
-         "target_world_z": xr.DataArray(pw[:, 2], dims="target", attrs={"units": "m", "frame": "world (depth)"}),
-         "target_range": xr.DataArray(r, dims="target", attrs={"units": "m"}),
-         "target_azimuth": xr.DataArray(az, dims="target", attrs={"units": "rad"}),
-         "target_elevation": xr.DataArray(el, dims="target", attrs={"units": "rad"}),
-         "target_backscatter_amplitude": xr.DataArray(rho, dims="target", attrs={"units": "m", "long_name": "rho = sqrt(sigma_bs)"}),
-         "target_ts": xr.DataArray(ts, dims="target", attrs={"units": "dB re 1 m^2", "long_name": "-inf where rho = 0",
-                                                                "nan_means": "-inf: rho = 0 (no echo)"}),
-         "target_phase": xr.DataArray(ph, dims="target", attrs={"units": "rad"}),
-         "target_group": xr.DataArray(grp, dims="target", attrs={"long_name": "-1 explicit point, else population index"}),
-         "target_id": xr.DataArray(tid.astype(np.int64), dims="target", attrs={
-             "long_name": "identity: point i is i, fish k of population j is (j + 1) x 1e6 + k; "
-                          "persistent across pings for points and populations with redraw: false"}),
-         "target_velocity_world_x": xr.DataArray(vel[:, 0], dims="target", attrs={"units": "m/s", "frame": "world"}),
-         "target_velocity_world_y": xr.DataArray(vel[:, 1], dims="target", attrs={"units": "m/s", "frame": "world"}),
-         "target_velocity_world_z": xr.DataArray(vel[:, 2], dims="target", attrs={"units": "m/s", "frame": "world (depth rate)"}),
-         "target_in_counting_volume": xr.DataArray(inside.astype(np.int8), dims="target"),
-         "target_shadowed": xr.DataArray(shd.astype(np.int8), dims="target",
-                                         attrs={"long_name": "1 where a mesh blocks the direct path (no direct echo)"}),
-         "truth_count_total": xr.DataArray(np.asarray(n, np.int64), dims="ping_time"),
-         "truth_count_in_volume": xr.DataArray(per_ping_in.astype(np.int64), dims="ping_time")},
-        coords={"ping_time": ping_time},
+    return build_group(
+        TRUTH_GROUP,
+        {"target_ping_index": ping_of,
+         "target_x": ps[:, 0], "target_y": ps[:, 1], "target_z": ps[:, 2],
+         "target_world_x": pw[:, 0], "target_world_y": pw[:, 1], "target_world_z": pw[:, 2],
+         "target_range": r, "target_azimuth": az, "target_elevation": el,
+         "target_backscatter_amplitude": rho, "target_ts": ts, "target_phase": ph,
+         "target_group": grp, "target_id": tid.astype(np.int64),
+         "target_velocity_world_x": vel[:, 0], "target_velocity_world_y": vel[:, 1],
+         "target_velocity_world_z": vel[:, 2],
+         "target_in_counting_volume": inside.astype(np.int8),
+         "target_shadowed": shd.astype(np.int8),
+         "truth_count_total": np.asarray(n, np.int64),
+         "truth_count_in_volume": per_ping_in.astype(np.int64),
+         "ping_time": ping_time},
         attrs={"counting_volume": "transmitter 3 dB beam (azimuth, elevation) x image range limits",
                "counting_range_m": list(volume.range_m),
                "counting_azimuth_halfwidth_rad": volume.azimuth_halfwidth_rad,
                "counting_elevation_halfwidth_rad": volume.elevation_halfwidth_rad,
                "counting_volume_m3": volume.volume_m3})
-    return ds

@@ -24,6 +24,8 @@ import os
 import numpy as np
 import xarray as xr
 
+from processing.base.contract import PROVENANCE_GROUP
+
 from acoustics.simulation.dataset import build_tree, provenance_dataset, rays_cast
 from acoustics.simulation.ping import simulate_ping
 from acoustics.simulation.setup import make_setup
@@ -102,5 +104,5 @@ def simulate(scene, *, pings=None, seed: int | None = None, progress=None):
     with log.stage("dataset"):
         tree = build_tree(scene, setup, pings, samples, clipped, truth, log, seed)
     # the provenance was written inside the "dataset" stage: rewrite it with that stage's time
-    tree["Provenance"] = xr.DataTree(provenance_dataset(scene, seed, log, rays_cast(setup)))
+    tree[PROVENANCE_GROUP] = xr.DataTree(provenance_dataset(scene, seed, log, rays_cast(setup)))
     return tree

@@ -28,7 +28,8 @@ import numpy as np
 
 from processing.imaging.beamforming import SubarrayGeometry
 from processing.imaging.compression import RangeFilter
-from processing.base.dataset import DatasetError
+from processing.base.contract import ENVIRONMENT_GROUP, SONAR_GROUP
+from processing.base.dataset import DatasetError, group_of
 
 __all__ = ["absorption_at_carrier", "Calibration", "calibration_of", "range_energy_width_m", "beam_solid_angle_sr"]
 
@@ -61,12 +62,12 @@ def calibration_of(tree) -> Calibration:
     processing.base.dataset.DatasetError
         The dataset does not carry a calibration (names what is missing and what it means).
     """
-    sonar = tree["Sonar"].ds if "Sonar" in tree.children else None
+    sonar = group_of(tree, SONAR_GROUP)
     missing = [k for k in ("calibration_gain", "two_way_elevation_width")
                if sonar is None or k not in sonar]
-    env = tree["Environment"].ds if "Environment" in tree.children else None
+    env = group_of(tree, ENVIRONMENT_GROUP)
     if env is None or "absorption_indicative" not in env:
-        missing.append("/Environment/absorption_indicative")
+        missing.append(f"/{ENVIRONMENT_GROUP}/absorption_indicative")
     if missing:
         raise DatasetError(
             f"echo integration needs the sonar's calibration: missing {', '.join(missing)} "
@@ -82,12 +83,12 @@ def absorption_at_carrier(tree) -> float:
     """α (dB/m) at the transmit centre frequency from /Environment/absorption_indicative: a
     scalar, or along ``frequency`` (SONAR-netCDF4), interpolated at
     /Sonar/transmit_frequency_center (the nearest value outside the tabulated range)."""
-    a = tree["Environment"].ds["absorption_indicative"]
+    a = tree[ENVIRONMENT_GROUP].ds["absorption_indicative"]
     v = np.asarray(a.values, float)
     if v.ndim == 0 or v.size == 1:
         return float(v.ravel()[0])
     f = np.asarray(a["frequency"].values if "frequency" in a.coords else [], float)
-    sonar = tree["Sonar"].ds
+    sonar = tree[SONAR_GROUP].ds
     if f.size != v.size or "transmit_frequency_center" not in sonar:
         raise DatasetError("/Environment/absorption_indicative has several values but no frequency "
                            "coordinate (Hz) or no /Sonar/transmit_frequency_center to pick one")

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from processing.base.contract import SV_GROUP
 from processing.base.dataset import DatasetError
 
 __all__ = ["sv_cells", "sv_db", "mean_volume_backscatter", "nasc", "backscatter", "SV_GROUP",
@@ -139,9 +140,6 @@ def nasc(s_v, range_m, layers_m) -> np.ndarray:
         rows = (r >= a) & (r < b)
         out[:, i] = 4 * np.pi * NMI_M**2 * s[:, rows].sum(axis=1) * dr
     return out
-
-
-SV_GROUP = "Processing/Sv"
 
 
 def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int = 10,

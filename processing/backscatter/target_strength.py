@@ -23,7 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from processing.base.dataset import ELEMENT_GROUP, DatasetError
+from processing.base.contract import ELEMENT_GROUP, ENVIRONMENT_GROUP, SONAR_GROUP
+from processing.base.dataset import DatasetError, group_of
 
 __all__ = ["BeamPattern", "beam_pattern_of", "target_strength_db"]
 
@@ -97,21 +98,18 @@ def beam_pattern_of(tree, subarray: str = "A") -> BeamPattern:
     processing.base.dataset.DatasetError
         The dataset lacks the element geometry (names the variables).
     """
-    sonar = tree["Sonar"].ds if "Sonar" in tree.children else None
+    sonar = group_of(tree, SONAR_GROUP)
     need = ["tx_element_x", "tx_element_y", "tx_element_z", "tx_element_width",
             "tx_element_height", "tx_element_rotation", "tx_element_weight",
             "transmit_frequency_center"]
-    missing = [f"/Sonar/{k}" for k in need if sonar is None or k not in sonar]
-    try:
-        eg = tree[ELEMENT_GROUP].ds
-    except KeyError:
-        eg = None
+    missing = [f"/{SONAR_GROUP}/{k}" for k in need if sonar is None or k not in sonar]
+    eg = group_of(tree, ELEMENT_GROUP)
     missing += [f"/{ELEMENT_GROUP}/{k}" for k in ("element_width", "element_height",
                                                   "element_rotation", "element_subarray")
                 if eg is None or k not in eg]
-    env = tree["Environment"].ds if "Environment" in tree.children else None
+    env = group_of(tree, ENVIRONMENT_GROUP)
     if env is None or "sound_speed_indicative" not in env:
-        missing.append("/Environment/sound_speed_indicative")
+        missing.append(f"/{ENVIRONMENT_GROUP}/sound_speed_indicative")
     if missing:
         raise DatasetError("target strength needs the sonar's element geometry: missing "
                            + ", ".join(missing) + " (docs/dataset.md)")

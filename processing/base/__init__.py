@@ -1,3 +1,4 @@
-"""The base every layer may use: the data contract and its I/O (dataset, convert), the
+"""The base every layer may use: the data contract — its table (contract), the builder and check
+every writer uses (groups), its I/O (dataset) and other layouts brought to it (convert) — the
 configuration machinery (config), file safety (atomic), resource limits (resources) and the
 counting volume (counting_volume), which the simulator's ground truth shares."""

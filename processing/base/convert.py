@@ -12,6 +12,9 @@ Two readers, one builder:
 * :func:`record_tree`: the SONAR-netCDF4 tree of a record given as arrays — what a reader of any
   other format calls.
 
+Every group is made (or, for the previous layout, brought to the contract's attributes) by
+:mod:`processing.base.groups` from the contract's table, the builder the simulator uses too.
+
 Every missing or malformed field is one :class:`processing.base.dataset.DatasetError` naming the file,
 the field and what is accepted.
 """
@@ -23,12 +26,16 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from processing.base.dataset import (CONVENTIONS, ELEMENT_GROUP, LEGACY_ELEMENT_GROUP, TRUTH_GROUP, DatasetError,
-                      split_complex)
+from processing.base.contract import (BEAM_GROUP_NAME, CHANNEL, ELEMENT_GROUP, ENVIRONMENT_GROUP, GROUPS,
+                                      LEGACY_ELEMENT_GROUP, LEGACY_TRUTH_GROUP, ROOT_GROUP, SONAR_GROUP,
+                                      TRUTH_GROUP, node_path)
+from processing.base.dataset import DatasetError
+from processing.base.groups import build_group, complex_pair, conform_group, per_ping, tree_of
 
 __all__ = ["record_tree", "from_legacy", "read_mat", "MAT_FIELDS", "CHANNEL"]
 
-CHANNEL = "abacus-receiver"
+#: what /Sonar says the one beam group holds
+BEAM_GROUP_DESCR = "complex baseband samples of every receive element: one beam per element"
 
 #: .mat field -> (required, meaning); names are case-sensitive
 MAT_FIELDS = {
@@ -89,6 +96,12 @@ def record_tree(samples, *, rate_hz: float, center_frequency_hz: float, bandwidt
     Returns
     -------
     xarray.DataTree
+        /, /Environment, /Sonar and /Sonar/Beam_group1 of the contract.
+
+    Raises
+    ------
+    DatasetError
+        A shape or value that does not fit (named, with what is accepted).
     """
     where = source or "record"
     x = np.asarray(samples)
@@ -121,73 +134,56 @@ def record_tree(samples, *, rate_hz: float, center_frequency_hz: float, bandwidt
     for s_ in sub:
         names.append(f"{s_}{counters.get(s_, 0)}")
         counters[s_] = counters.get(s_, 0) + 1
-    per_ping = lambda v: xr.DataArray(np.full((1, n_p), float(v)), dims=("channel", "ping_time"))
-    pair = {k: xr.DataArray(v.values[None].transpose(0, 1, 3, 2),
-                            dims=("channel", "ping_time", "range_sample", "beam"), attrs=v.attrs)
-            for k, v in split_complex("backscatter", x.astype(np.complex64),
-                                      ("ping_time", "beam", "range_sample"),
-                                      {"long_name": "complex baseband samples per receive element"}).items()}
-    eg = xr.Dataset(
-        {**pair,
-         "beam_type": xr.DataArray(["single"], dims="channel"),
-         "sample_interval": per_ping(1.0 / rate_hz), "blanking_interval": per_ping(time_offset_s),
-         "sample_time_offset": per_ping(0.0),
-         "transmit_frequency_start": per_ping(center_frequency_hz - bandwidth_hz / 2),
-         "transmit_frequency_stop": per_ping(center_frequency_hz + bandwidth_hz / 2),
-         "transmit_bandwidth": per_ping(bandwidth_hz),
-         "element_x": ("beam", pos[:, 0]), "element_y": ("beam", pos[:, 1]), "element_z": ("beam", pos[:, 2]),
-         "element_subarray": ("beam", sub),
-         "element_index_in_subarray": ("beam", np.array([int(n[len(s_):]) for n, s_ in zip(names, sub)]))},
-        coords={"channel": [CHANNEL], "ping_time": ping_time, "ping_index": ("ping_time", np.arange(n_p)),
-                "range_sample": np.arange(n_s), "beam": names},
-        attrs={"mode": mode})
+    # (ping, element, sample) -> (channel, ping_time, range_sample, beam): float32 views
+    pair = {k: v[None].transpose(0, 1, 3, 2) for k, v in complex_pair("backscatter", x.astype(np.complex64)).items()}
+    beams = {**pair,
+             "beam_type": ["single"],
+             "sample_interval": per_ping(1.0 / rate_hz, n_p), "blanking_interval": per_ping(time_offset_s, n_p),
+             "sample_time_offset": per_ping(0.0, n_p),
+             "transmit_frequency_start": per_ping(center_frequency_hz - bandwidth_hz / 2, n_p),
+             "transmit_frequency_stop": per_ping(center_frequency_hz + bandwidth_hz / 2, n_p),
+             "transmit_bandwidth": per_ping(bandwidth_hz, n_p),
+             "element_x": pos[:, 0], "element_y": pos[:, 1], "element_z": pos[:, 2],
+             "element_subarray": sub,
+             "element_index_in_subarray": np.array([int(n[len(s_):]) for n, s_ in zip(names, sub)]),
+             "channel": [CHANNEL], "ping_time": ping_time, "ping_index": np.arange(n_p),
+             "range_sample": np.arange(n_s), "beam": names}
     if element_size_m is not None:
-        size = np.asarray(element_size_m, float)
-        if size.size != 2 * n_e:
-            raise DatasetError(f"{where}: element_size must be {n_e} x 2 (width, height in m)")
-        size = size.reshape(n_e, 2)
-        eg["element_width"], eg["element_height"] = ("beam", size[:, 0]), ("beam", size[:, 1])
-        eg["element_rotation"] = ("beam", np.zeros(n_e))
-    rep = np.asarray(replica).ravel()
-    sonar = xr.Dataset(
-        {**split_complex("replica", rep.astype(np.complex128), ("replica_sample",)),
-         "transmit_frequency_center": center_frequency_hz, "transmit_bandwidth": bandwidth_hz,
-         "tx_element_x": ("tx_element", tx[:, 0]), "tx_element_y": ("tx_element", tx[:, 1]),
-         "tx_element_z": ("tx_element", tx[:, 2]), "tx_element_weight": ("tx_element", txw),
-         "beam_group_name": ("beam_group", ["Beam_group1"]),
-         "beam_group_descr": ("beam_group", ["complex baseband samples of every receive element: one "
-                                             "beam per element"])},
-        coords={"channel_all": [CHANNEL], "beam_group": ["Beam_group1"]},
-        attrs={"sonar_manufacturer": "", "sonar_model": "", "sonar_serial_number": "",
-               "sonar_software_name": "", "sonar_software_version": "", "sonar_type": "multibeam",
-               "transmit_type": "LFM"})
+        beams.update(_sizes(element_size_m, n_e, "element", f"{where}: element_size"))
+    sonar = {**complex_pair("replica", np.asarray(replica).ravel().astype(np.complex128)),
+             "transmit_frequency_center": center_frequency_hz, "transmit_bandwidth": bandwidth_hz,
+             "tx_element_x": tx[:, 0], "tx_element_y": tx[:, 1], "tx_element_z": tx[:, 2],
+             "tx_element_weight": txw,
+             "beam_group_name": [BEAM_GROUP_NAME], "beam_group_descr": [BEAM_GROUP_DESCR],
+             "channel_all": [CHANNEL], "beam_group": [BEAM_GROUP_NAME]}
     if tx_beamwidth_deg is not None:
         bw = np.asarray(tx_beamwidth_deg, float).ravel()
         if bw.size != 2 or not np.all(bw > 0):
             raise DatasetError(f"{where}: tx_beamwidth_deg must be two positive angles [azimuth, elevation]")
-        sonar["beamwidth_transmit_major"] = xr.DataArray(bw[0], attrs={"units": "arc_degree"})
-        sonar["beamwidth_transmit_minor"] = xr.DataArray(bw[1], attrs={"units": "arc_degree"})
+        sonar.update(beamwidth_transmit_major=bw[0], beamwidth_transmit_minor=bw[1])
     if tx_size_m is not None:
-        tsize = np.asarray(tx_size_m, float)
-        if tsize.size != 2 * len(tx):
-            raise DatasetError(f"{where}: tx_size must be {len(tx)} x 2 (width, height in m)")
-        tsize = tsize.reshape(len(tx), 2)
-        sonar["tx_element_width"] = ("tx_element", tsize[:, 0])
-        sonar["tx_element_height"] = ("tx_element", tsize[:, 1])
-        sonar["tx_element_rotation"] = ("tx_element", np.zeros(len(tx)))
-    env = xr.Dataset({"sound_speed_indicative": float(sound_speed_m_s)})
+        sonar.update(_sizes(tx_size_m, len(tx), "tx_element", f"{where}: tx_size"))
+    env = {"sound_speed_indicative": float(sound_speed_m_s)}
     if absorption_db_per_m is not None:
-        env["absorption_indicative"] = xr.DataArray([float(absorption_db_per_m)], dims="frequency",
-                                                    coords={"frequency": [float(center_frequency_hz)]},
-                                                    attrs={"units": "dB/m"})
-    root = xr.Dataset(attrs={
-        "conventions": CONVENTIONS, "sonar_convention_authority": "ICES",
-        "sonar_convention_name": "SONAR-netCDF4", "sonar_convention_version": "1.0",
-        "keywords": "", "title": title, "data_kind": "recorded",
-        "date_created": _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat(),
-        "source": str(source)})
-    return xr.DataTree.from_dict({"/": root, "/Environment": env, "/Sonar": sonar,
-                                  f"/{ELEMENT_GROUP}": eg})
+        env.update(absorption_indicative=[float(absorption_db_per_m)], frequency=[float(center_frequency_hz)])
+    root = {"keywords": "", "title": title, "data_kind": "recorded",
+            "date_created": _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat(),
+            "source": str(source)}
+    return tree_of({ROOT_GROUP: build_group(ROOT_GROUP, {}, attrs=root),
+                    ENVIRONMENT_GROUP: build_group(ENVIRONMENT_GROUP, env),
+                    SONAR_GROUP: build_group(SONAR_GROUP, sonar, attrs={
+                        "sonar_manufacturer": "", "sonar_model": "", "sonar_serial_number": "",
+                        "sonar_software_name": "", "sonar_software_version": ""}),
+                    ELEMENT_GROUP: build_group(ELEMENT_GROUP, beams, attrs={"mode": mode})})
+
+
+def _sizes(size_m, n: int, prefix: str, where: str) -> dict:
+    """``<prefix>_width/_height`` of n elements from an (n, 2) array, and rotations 0."""
+    size = np.asarray(size_m, float)
+    if size.size != 2 * n:
+        raise DatasetError(f"{where} must be {n} x 2 (width, height in m)")
+    size = size.reshape(n, 2)
+    return {f"{prefix}_width": size[:, 0], f"{prefix}_height": size[:, 1], f"{prefix}_rotation": np.zeros(n)}
 
 
 def from_legacy(tree: xr.DataTree, *, source: str = "") -> xr.DataTree:
@@ -210,39 +206,42 @@ def from_legacy(tree: xr.DataTree, *, source: str = "") -> xr.DataTree:
     eg = old.drop_vars([v for v in ("channel", "rx_element") if v in old.variables])
     eg = eg.rename({"rx_element": "beam"}).assign_coords(beam=names, channel=[CHANNEL])
     n_p = eg.sizes["ping_time"]
-    for part in ("r", "i"):
-        v = eg[f"element_{part}"]
-        eg[f"backscatter_{part}"] = xr.DataArray(v.values[None].transpose(0, 1, 3, 2),
-                                                 dims=("channel", "ping_time", "range_sample", "beam"),
-                                                 attrs=v.attrs)
-        eg = eg.drop_vars(f"element_{part}")
-    per_ping = lambda v: xr.DataArray(np.full((1, n_p), float(v)), dims=("channel", "ping_time"))
-    eg["blanking_interval"] = per_ping(float(old["sample_time_offset"].values))
-    eg["sample_time_offset"] = per_ping(0.0)
-    eg["sample_interval"] = per_ping(float(old["sample_interval"].values))
-    eg["beam_type"] = xr.DataArray(["single"], dims="channel")
-    out = {"/": tree.to_dataset(inherit=False)}
+    # the samples to (channel, ping_time, range_sample, beam); sample_time_offset was the time of
+    # sample 0, which SONAR-netCDF4 calls the blanking interval
+    new = build_group(ELEMENT_GROUP, {
+        **{f"backscatter_{p}": eg[f"element_{p}"].values[None].transpose(0, 1, 3, 2) for p in "ri"},
+        "blanking_interval": per_ping(float(old["sample_time_offset"].values), n_p),
+        "sample_time_offset": per_ping(0.0, n_p),
+        "sample_interval": per_ping(float(old["sample_interval"].values), n_p),
+        "beam_type": ["single"]})
+    for name, var in new.data_vars.items():
+        if name.startswith("backscatter_"):      # what else the old samples said is kept
+            var.attrs = {**old[name.replace("backscatter", "element")].attrs, **var.attrs}
+    eg = eg.drop_vars(["element_r", "element_i", "sample_time_offset", "sample_interval"])
+    for name, var in new.data_vars.items():
+        eg[name] = var
+    legacy = node_path(LEGACY_ELEMENT_GROUP)
+    skip = {ROOT_GROUP, legacy, legacy.rsplit("/", 1)[0]}
+    moved = {node_path(LEGACY_TRUTH_GROUP): node_path(TRUTH_GROUP)}
+    out = {ROOT_GROUP: tree.to_dataset(inherit=False)}
     for node in tree.subtree:
-        path = node.path
-        if path in ("/", "/Simulation", f"/{LEGACY_ELEMENT_GROUP}"):
+        path = node_path(node.path)
+        if path in skip:
             continue
         ds = node.to_dataset(inherit=False)
-        if path == "/Simulation/Ground_truth":
-            path = f"/{TRUTH_GROUP}"
-        if path == "/Sonar":
-            ds = ds.assign_coords(channel_all=[CHANNEL], beam_group=["Beam_group1"])
-            ds["beam_group_name"] = ("beam_group", ["Beam_group1"])
-            ds["beam_group_descr"] = ("beam_group", ["complex baseband samples of every receive "
-                                                     "element: one beam per element"])
+        path = moved.get(path, path)
+        if path == node_path(SONAR_GROUP):
+            ds = ds.assign_coords(channel_all=[CHANNEL], beam_group=[BEAM_GROUP_NAME])
+            ds["beam_group_name"] = ("beam_group", [BEAM_GROUP_NAME])
+            ds["beam_group_descr"] = ("beam_group", [BEAM_GROUP_DESCR])
         out[path] = ds
-    out[f"/{ELEMENT_GROUP}"] = eg
-    attrs = dict(out["/"].attrs)
-    attrs.update(sonar_convention_authority="ICES", sonar_convention_name="SONAR-netCDF4",
-                 sonar_convention_version="1.0",
-                 keywords=str(out.get("/Sonar", xr.Dataset()).attrs.get("sonar_model", "")),
-                 converted_from="abacus layout before SONAR-netCDF4 (/Simulation/Element_group1)")
-    out["/"] = out["/"].assign_attrs(attrs)
-    return xr.DataTree.from_dict(out)
+    out[node_path(ELEMENT_GROUP)] = eg
+    out[ROOT_GROUP] = out[ROOT_GROUP].assign_attrs(
+        keywords=str(out.get(node_path(SONAR_GROUP), xr.Dataset()).attrs.get("sonar_model", "")),
+        converted_from=f"abacus layout before SONAR-netCDF4 ({legacy})")
+    # every group the contract knows gets its units and attributes from the table; anything
+    # else the old file held is moved as it was
+    return tree_of({path: conform_group(path, ds) if path in GROUPS else ds for path, ds in out.items()})
 
 
 def _mat_field(m, name, where, *, required=True):

@@ -1,6 +1,7 @@
 """The data contract between the simulator (or a recorder) and processing, and its I/O.
 
-Layout (ICES SONAR-netCDF4 1.0 as echopype lays it out; docs/dataset.md has every variable)::
+Layout (ICES SONAR-netCDF4 1.0 as echopype lays it out; every variable, its dimensions and units
+are in one table, processing/base/contract.py, which docs/dataset.md shows)::
 
     /                               conventions, sonar_convention_*, keywords (the sonar model), ...
     /Environment                    sound_speed_indicative, absorption_indicative (frequency), ...
@@ -30,17 +31,15 @@ import numpy as np
 import xarray as xr
 
 from processing.base.atomic import staged
+# the group paths and the convention are the contract's table's, importable from here too
+from processing.base.contract import (CONVENTIONS, ELEMENT_GROUP, ENVIRONMENT_GROUP, LEGACY_ELEMENT_GROUP,
+                                      SONAR_GROUP, TRUTH_GROUP)
 
 __all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "ping_indices", "TRUTH_GROUP",
            "write_tree", "write_dataset", "check_finite", "NAN_MEANS", "open_tree", "tree_pings", "source_of", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
-           "read_record", "beam_samples", "LEGACY_ELEMENT_GROUP", "as_tree"]
+           "read_record", "beam_samples", "LEGACY_ELEMENT_GROUP", "as_tree", "group_of", "has_group"]
 
 FORMATS = ("netcdf", "zarr")
-CONVENTIONS = "CF-1.7, SONAR-netCDF4-1.0, ACDD-1.3"
-ELEMENT_GROUP = "Sonar/Beam_group1"
-TRUTH_GROUP = "Vendor_specific"
-#: the layout abacus wrote before SONAR-netCDF4 1.0 (read by `abacus convert`)
-LEGACY_ELEMENT_GROUP = "Simulation/Element_group1"
 
 
 class DatasetError(ValueError):
@@ -421,12 +420,30 @@ def _need(tree, group, name, where):
     return node.ds[name]
 
 
-def _has_group(tree, path) -> bool:
+def group_of(tree: xr.DataTree, group: str) -> xr.Dataset | None:
+    """A group's variables, or None when the dataset has no such group.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+    group : str
+        A group path of :mod:`processing.base.contract` (``SONAR_GROUP``, ``ELEMENT_GROUP``, ...).
+
+    Returns
+    -------
+    xarray.Dataset or None
+        The node's dataset (a view: its coordinates include those it inherits).
+    """
     try:
-        tree[path]
+        node = tree[group]
     except KeyError:
-        return False
-    return True
+        return None
+    return node.ds if isinstance(node, xr.DataTree) else None
+
+
+def has_group(tree: xr.DataTree, group: str) -> bool:
+    """Whether the dataset has the group (``ELEMENT_GROUP``, ``DETECTIONS_GROUP``, ...)."""
+    return group_of(tree, group) is not None
 
 
 def _per_channel_scalar(tree, group, name, where, default=None) -> float:
@@ -483,7 +500,7 @@ def read_record(tree: xr.DataTree, *, source: str = "") -> SonarRecord:
     try:
         node = tree[eg]
     except KeyError:
-        if _has_group(tree, LEGACY_ELEMENT_GROUP):
+        if has_group(tree, LEGACY_ELEMENT_GROUP):
             raise DatasetError(f"{where}: the previous abacus layout (/{LEGACY_ELEMENT_GROUP}); "
                                f"bring it to SONAR-netCDF4 with `abacus convert IN OUT`") from None
         raise DatasetError(f"{where}: missing group /{eg} (per-element samples)") from None
@@ -499,18 +516,18 @@ def read_record(tree: xr.DataTree, *, source: str = "") -> SonarRecord:
               - _per_channel_scalar(tree, eg, "sample_time_offset", where, default=0.0))
     pos = np.stack([_need(tree, eg, f"element_{a}", where).values for a in "xyz"], -1).astype(float)
     sub = np.asarray(_need(tree, eg, "element_subarray", where).values).astype(str)
-    sonar = tree["Sonar"].ds if "Sonar" in tree.children else None
+    sonar = group_of(tree, SONAR_GROUP)
     if sonar is None:
-        raise DatasetError(f"{where}: missing group /Sonar (transmit pulse)")
-    replica = complex_of(sonar, "replica", where=f"{where}: /Sonar")
+        raise DatasetError(f"{where}: missing group /{SONAR_GROUP} (transmit pulse)")
+    replica = complex_of(sonar, "replica", where=f"{where}: /{SONAR_GROUP}")
     if replica.size == 0 or not np.any(replica) or not np.all(np.isfinite(replica)):
-        raise DatasetError(f"{where}: /Sonar/replica_r/_i (the transmit pulse) is empty, all zero or "
+        raise DatasetError(f"{where}: /{SONAR_GROUP}/replica_r/_i (the transmit pulse) is empty, all zero or "
                            f"not finite: nothing to compress the echoes with")
-    tx = np.stack([_need(tree, "Sonar", f"tx_element_{a}", where).values for a in "xyz"], -1)
-    txw = _need(tree, "Sonar", "tx_element_weight", where).values.astype(float)
-    f0 = float(_need(tree, "Sonar", "transmit_frequency_center", where).values)
-    bw = float(_need(tree, "Sonar", "transmit_bandwidth", where).values)
-    c = float(_need(tree, "Environment", "sound_speed_indicative", where).values)
+    tx = np.stack([_need(tree, SONAR_GROUP, f"tx_element_{a}", where).values for a in "xyz"], -1)
+    txw = _need(tree, SONAR_GROUP, "tx_element_weight", where).values.astype(float)
+    f0 = float(_need(tree, SONAR_GROUP, "transmit_frequency_center", where).values)
+    bw = float(_need(tree, SONAR_GROUP, "transmit_bandwidth", where).values)
+    c = float(_need(tree, ENVIRONMENT_GROUP, "sound_speed_indicative", where).values)
     mode = str(ds.attrs.get("mode", "interferometric"))
     if mode not in ("interferometric", "normal", "combined"):
         raise DatasetError(f"{where}: /{eg} attribute mode={mode!r}; accepted: interferometric, "

@@ -21,13 +21,13 @@ from __future__ import annotations
 import numpy as np
 import xarray as xr
 
-from processing.base.dataset import ELEMENT_GROUP, DatasetError
-from processing.pipeline import PROCESSING_GROUP, pose_of
+from processing.base.contract import (COUNTS_GROUP, DETECTIONS_GROUP, ELEMENT_GROUP, ENVIRONMENT_GROUP, SONAR_GROUP,
+                                      TRACKS_GROUP, TRUTH_GROUP)
+from processing.base.dataset import DatasetError, group_of, has_group
+from processing.pipeline import pose_of
 
 __all__ = ["TRACKS_GROUP", "track", "tracks_of", "track_summary", "format_tracks",
            "write_tracks_csv"]
-
-TRACKS_GROUP = "Processing/Tracks"
 
 
 def _ping_times_s(tree):
@@ -96,7 +96,7 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     chain = RecordChain(tree, settings)
     tree, st = chain.tree, chain.settings
     ts_ = st.track
-    if PROCESSING_GROUP in tree.children and "Detections" in tree[PROCESSING_GROUP].children:
+    if has_group(tree, DETECTIONS_GROUP):
         detected = chain.detected()          # the detections the dataset holds, as a record
     else:
         detected = chain.detect()
@@ -108,9 +108,8 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     rows = det["ping"].astype(int)
     world = np.stack([det[f"world_{a}_m"] for a in "xyz"], -1).reshape(-1, 3)
     usable = ~det["elevation_clipped"] if "elevation_clipped" in det else np.ones(len(rows), bool)
-    env = tree["Environment"].ds
-    c = float(env["sound_speed_indicative"].values)
-    f0 = float(tree["Sonar"].ds["transmit_frequency_center"].values)
+    c = float(tree[ENVIRONMENT_GROUP].ds["sound_speed_indicative"].values)
+    f0 = float(tree[SONAR_GROUP].ds["transmit_frequency_center"].values)
     baseline = _baseline_m(tree)
     poses = _Poses(tree)
     if baseline is None:
@@ -218,10 +217,8 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
 
 
 def _truth_table(tree):
-    from processing.base.dataset import TRUTH_GROUP
-    try:
-        gt = tree[TRUTH_GROUP].ds
-    except KeyError:
+    gt = group_of(tree, TRUTH_GROUP)
+    if gt is None:
         return None
     if "target_id" not in gt:
         return None
@@ -306,8 +303,8 @@ def track_summary(tree: xr.DataTree) -> dict:
          "track_density_per_m3": float(a["track_density_per_m3"]),
          "counting_volume_m3": float(a["counting_volume_m3"]), "duration_s": float(a["duration_s"]),
          "method": str(a["method"])}
-    if "Counts" in tree[PROCESSING_GROUP].children:
-        c = tree[f"{PROCESSING_GROUP}/Counts"].ds
+    c = group_of(tree, COUNTS_GROUP)
+    if c is not None:
         if "count_after" in c and c["count_after"].size and np.isfinite(c["count_after"].values).any():
             s["per_ping_count_mean"] = float(np.nanmean(c["count_after"].values))
             s["per_ping_density_per_m3"] = float(np.nanmean(c["density_per_m3"].values))
