@@ -18,16 +18,16 @@ import numpy as np
 import xarray as xr
 
 from processing.base.counting_volume import CountingVolume
-from processing.base.dataset import (ELEMENT_GROUP, TRUTH_GROUP, DatasetError, as_tree, ping_indices,
-                                     read_record, source_of)
+from processing.base.contract import (DETECTIONS_GROUP, ELEMENT_GROUP, PLATFORM_GROUP, PROCESSING_GROUP,
+                                      PROVENANCE_GROUP, SONAR_GROUP, TRUTH_GROUP)
+from processing.base.dataset import (DatasetError, as_tree, group_of, has_group, ping_indices, read_record,
+                                     source_of)
 from processing.base.config import parse_yaml, validate_file
 from processing.settings import ImageSettings, ProcessingSettings, load_settings
 
 __all__ = ["Detected", "RecordChain", "FLAG_COLUMNS", "resolve_settings", "noise_band_of",
            "volume_of", "pose_of", "AFTER_KEYS"]
 
-PROCESSING_GROUP = "Processing"
-DETECTIONS_GROUP = "Processing/Detections"
 #: detection columns that are flags (stored as int8, passed on as bool)
 FLAG_COLUMNS = ("in_span", "in_volume", "elevation_clipped")
 
@@ -58,8 +58,9 @@ def resolve_settings(tree: xr.DataTree | None, settings=None) -> ProcessingSetti
     if settings is not None:
         raise TypeError(f"settings must be ProcessingSettings, ImageSettings, a dict or a YAML "
                         f"path, not {type(settings).__name__}")
-    if tree is not None and "Provenance" in tree.children:
-        text = tree["Provenance"].ds.attrs.get("scene_text", "")
+    provenance = group_of(tree, PROVENANCE_GROUP) if tree is not None else None
+    if provenance is not None:
+        text = provenance.attrs.get("scene_text", "")
         if text:
             data, _ = parse_yaml(text, source="/Provenance scene_text")
             section = data.get("processing") if isinstance(data, dict) else None
@@ -83,7 +84,8 @@ def volume_of(tree: xr.DataTree, settings: ProcessingSettings, image_range_m=Non
     range (settings, else ``image_range_m``, else what /Processing recorded), with the overrides
     of ``settings.count``."""
     from processing.base.counting_volume import counting_volume
-    sonar = tree["Sonar"].ds if "Sonar" in tree.children else xr.Dataset()
+    sonar = group_of(tree, SONAR_GROUP)
+    sonar = sonar if sonar is not None else xr.Dataset()
     cs = settings.count
     need = []
     for key, override in (("beamwidth_transmit_major", cs.azimuth_halfwidth),
@@ -118,8 +120,8 @@ def pose_of(tree):
         platform one per ping: shapes (n_pings, 3) and (n_pings, 3, 3). None when the dataset
         has no pose (sonar frame = world frame).
     """
-    if "Platform" in tree.children and "sonar_rotation" in tree["Platform"].ds:
-        ds = tree["Platform"].ds
+    ds = group_of(tree, PLATFORM_GROUP)
+    if ds is not None and "sonar_rotation" in ds:
         if "ping_sonar_rotation" in ds:
             return (ds["ping_sonar_position"].values.astype(float),
                     ds["ping_sonar_rotation"].values.astype(float))
@@ -287,7 +289,7 @@ class RecordChain:
         """The dataset's detections: those it holds (/Processing/Detections, read as a record),
         else detected here."""
         tree = self.tree
-        if PROCESSING_GROUP not in tree.children or "Detections" not in tree[PROCESSING_GROUP].children:
+        if not has_group(tree, DETECTIONS_GROUP):
             return self.detect()
         ds = tree[DETECTIONS_GROUP].ds
         table = {k: ds[k].values for k in ds.data_vars if ds[k].dims == ("detection",)}

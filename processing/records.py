@@ -22,15 +22,15 @@ from processing.base.dataset import (ELEMENT_GROUP, DatasetError, complex_of, re
                                      split_complex)
 from processing.chain import record_pings
 from processing.imaging.images import Images, form_images
-from processing.pipeline import (AFTER_KEYS, DETECTIONS_GROUP, PROCESSING_GROUP, noise_band_of,
-                                 resolve_settings, volume_of)
+from processing.base.contract import COUNTS_GROUP, DETECTIONS_GROUP, PROCESSING_GROUP
+from processing.base.dataset import has_group
+from processing.pipeline import AFTER_KEYS, noise_band_of, resolve_settings, volume_of
 from processing.settings import ImageSettings, ProcessingSettings
 
 __all__ = ["PROCESSING_GROUP", "resolve_settings", "image", "images_of", "figure_images", "detect", "count",
            "volume_of", "detections_of", "counts_of", "write_csv", "count_summary", "format_counts",
            "with_detections", "noise_band_of"]
 
-COUNTS_GROUP = "Processing/Counts"
 
 
 #: what ``image``/``count`` may store of the images: nothing, the images at the data's own
@@ -184,7 +184,7 @@ def figure_images(tree: xr.DataTree, pings, settings=None) -> Images:
     pds = tree[PROCESSING_GROUP].ds if PROCESSING_GROUP in tree.children else None
     if pds is not None and "image_r" in pds and pds.attrs.get("image_storage", "full") == "full":
         return images_of(tree).pings(idx)
-    if settings is None and pds is not None and "Detections" in tree[PROCESSING_GROUP].children:
+    if settings is None and pds is not None and has_group(tree, DETECTIONS_GROUP):
         text = tree[DETECTIONS_GROUP].ds.attrs.get("settings_yaml")
         if text:
             data, _ = parse_yaml(str(text), source="/Processing/Detections settings_yaml")
@@ -300,7 +300,7 @@ def detections_of(tree: xr.DataTree) -> xr.Dataset:
     DatasetError
         No /Processing/Detections (run :func:`detect` first).
     """
-    if PROCESSING_GROUP not in tree.children or "Detections" not in tree[PROCESSING_GROUP].children:
+    if not has_group(tree, DETECTIONS_GROUP):
         raise DatasetError("the dataset has no /Processing/Detections: run processing.detect first")
     ds = tree[DETECTIONS_GROUP].ds
     table = ds[[k for k in ds.data_vars if ds[k].dims == ("detection",)]]
@@ -340,7 +340,7 @@ def count(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.DataT
     from processing.pipeline import RecordChain
     chain = RecordChain(tree, settings)
     tree, st = chain.tree, chain.settings
-    if PROCESSING_GROUP in tree.children and "Detections" in tree[PROCESSING_GROUP].children:
+    if has_group(tree, DETECTIONS_GROUP):
         detected = chain.detected()          # the detections the dataset holds, as a record
     else:
         if images not in IMAGE_STORAGE:
@@ -383,7 +383,7 @@ def counts_of(tree: xr.DataTree) -> xr.Dataset:
     DatasetError
         No /Processing/Counts (run :func:`count` first).
     """
-    if PROCESSING_GROUP not in tree.children or "Counts" not in tree[PROCESSING_GROUP].children:
+    if not has_group(tree, COUNTS_GROUP):
         raise DatasetError("the dataset has no /Processing/Counts: run processing.count first")
     return tree[COUNTS_GROUP].ds
 

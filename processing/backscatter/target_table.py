@@ -31,7 +31,8 @@ def single_target_table(tree: xr.DataTree, settings=None) -> xr.Dataset:
         (dB re 1 m²; NaN without a calibration, ts_comp NaN beyond the compensable beam),
         ``beam_pattern_db`` (two-way, dB re axis) and ``single_target`` (bool).
     """
-    from processing.pipeline import DETECTIONS_GROUP, RecordChain
+    from processing.base.contract import DETECTIONS_GROUP
+    from processing.pipeline import RecordChain
     chain = RecordChain(tree, settings)
     detected = chain.detected()
     columns = chain.single_targets(detected)
