@@ -72,7 +72,8 @@ def test_missing_extra_is_an_import_error_naming_the_extra():
 
 
 def test_require_names_the_extra(monkeypatch):
-    monkeypatch.setitem(sys.modules, "distributed", None)
+    for name in ("distributed", "dask.distributed"):     # either may be imported already
+        monkeypatch.setitem(sys.modules, name, None)
     with pytest.raises(MissingExtra, match=r"needs the extra 'experiment'"):
         require("dask.distributed", "a cluster")
     monkeypatch.setitem(sys.modules, "motmetrics", None)
