@@ -31,6 +31,7 @@ import numpy as np
 import xarray as xr
 
 from processing.base.atomic import staged
+from processing.base.extras import require
 # the group paths and the convention are the contract's table's, importable from here too
 from processing.base.contract import (CONVENTIONS, ELEMENT_GROUP, ENVIRONMENT_GROUP, LEGACY_ELEMENT_GROUP,
                                       SONAR_GROUP, TRUTH_GROUP)
@@ -112,6 +113,8 @@ def write_tree(tree: xr.DataTree, path: str | Path, *, fmt: str | None = None) -
         raise DatasetError(f"{path}: the folder {path.parent} does not exist")
     for node in tree.subtree:
         check_finite(node.ds, where=f"{path}: /{node.path.strip('/')}")
+    if fmt == "zarr":
+        require("zarr", f"writing Zarr ({path.name})")
     with staged(path) as tmp:
         if fmt == "netcdf":
             with _small_chunk_cache():
@@ -171,6 +174,8 @@ def write_dataset(ds: xr.Dataset, path: str | Path, *, fmt: str | None = None,
     if chunk_dim is not None:
         chunks = {k: tuple(1 if d == chunk_dim else ds.sizes[d] for d in v.dims)
                   for k, v in ds.data_vars.items() if chunk_dim in v.dims}
+    if fmt == "zarr":
+        require("zarr", f"writing Zarr ({path.name})")
     with staged(path) as tmp:
         if fmt == "zarr":
             ds.to_zarr(tmp, mode="w", encoding={k: {"chunks": c} for k, c in chunks.items()},
@@ -202,6 +207,8 @@ def open_tree(path: str | Path, *, max_memory_gb: float | None = None,
         raise DatasetError(f"{path}: no such file or folder")
     if not path.is_dir() and not path.is_file():
         raise DatasetError(f"{path}: not a regular file (a device or a pipe); expected NetCDF4 or Zarr")
+    if path.is_dir():
+        require("zarr", f"reading Zarr ({path.name})")
     try:
         if path.is_dir():
             tree = xr.open_datatree(path, engine="zarr", consolidated=False)
