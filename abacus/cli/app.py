@@ -99,8 +99,8 @@ def _clean_up(message: str | None = None):
 
 def _end_now(code: int, message: str | None = None):
     """Leave at once, where the command cannot end itself in time (a second signal; 5 s after
-    the first; an interrupt a finaliser swallowed): temporaries removed, then the signal ends
-    the process by its default action — which a shell reports as 128 + the signal (130, 143).
+    the first): temporaries removed, then the signal ends the process by its default action —
+    which a shell reports as 128 + the signal (130, 143).
     From another thread than the main one (the watchdog), which may not change a signal's
     action, SIGKILL ends it."""
     import os
@@ -135,6 +135,11 @@ def _install_signal_handlers():
     state = {"seen": False}
 
     def handler(signum, frame):
+        if _SWALLOWED.get(signum):     # the interrupt a finaliser swallowed, delivered again
+            if _inside_hook(frame):     # raised here, it would be dropped again: the next one
+                return
+            del _SWALLOWED[signum]
+            raise KeyboardInterrupt if signum == signal.SIGINT else _Terminated()
         code = EXIT_INTERRUPTED if signum == signal.SIGINT else EXIT_TERMINATED
         if state["seen"]:
             _end_now(code, "interrupted")
@@ -149,16 +154,47 @@ def _install_signal_handlers():
         sys.unraisablehook = _unraisable_ends_an_interrupt(sys.unraisablehook)
 
 
+#: the signal of an interrupt a finaliser swallowed -> True until it is raised again
+_SWALLOWED: dict = {}
+#: the code of the unraisable hook (an interrupt raised while it runs would be dropped)
+_HOOK_CODES: set = set()
+
+
+def _inside_hook(frame) -> bool:
+    while frame is not None:
+        if frame.f_code in _HOOK_CODES:
+            return True
+        frame = frame.f_back
+    return False
+
+
 def _unraisable_ends_an_interrupt(default_hook):
     """A hook for exceptions Python can only print and drop (raised in a finaliser, a GC
     callback): one of ours from a signal — the handler raised it while a ``__del__`` ran —
-    still ends the command as that interrupt, at once, instead of a traceback printed and the
-    command going on (seen once in the reliability probes: SIGINT during an experiment)."""
+    still ends the command as that interrupt, instead of a traceback printed and the command
+    going on (seen in the reliability probes: SIGINT during an experiment, during imports):
+    a thread sends the signal to the main thread again until its handler has raised the
+    interrupt anew outside this hook (inside it, it would be dropped too), where it ends the
+    command as any interrupt does."""
+    import signal
+    import threading
+    import time
+
+    def deliver_again(signum):
+        main = threading.main_thread()
+        while _SWALLOWED.get(signum) and main.is_alive():
+            signal.pthread_kill(main.ident, signum)
+            time.sleep(0.02)
+
     def hook(unraisable):
         if _RECEIVED and unraisable.exc_type is not None and \
                 issubclass(unraisable.exc_type, (KeyboardInterrupt, _Terminated)):
-            _end_now(*_RECEIVED[0])
+            signum = signal.SIGINT if _RECEIVED[0][0] == EXIT_INTERRUPTED else signal.SIGTERM
+            _SWALLOWED[signum] = True
+            threading.Thread(target=deliver_again, args=(signum,), daemon=True).start()
+            return
         default_hook(unraisable)
+    _HOOK_CODES.add(hook.__code__)
     return hook
 
 
