@@ -15,13 +15,9 @@ Public surface (imported on first use, so ``import abacus`` is cheap)::
 """
 from __future__ import annotations
 
-import importlib
+from processing.base.lazy import distribution_version, public_api
 
-try:
-    from importlib.metadata import PackageNotFoundError, version as _dist_version
-    __version__ = _dist_version("abacus")
-except PackageNotFoundError:  # pragma: no cover - running from a source tree
-    __version__ = "0+unknown"
+__version__ = distribution_version("abacus")
 
 #: public name -> module that defines it
 _API = {
@@ -29,17 +25,4 @@ _API = {
     "main": "abacus.cli.app",
 }
 
-__all__ = sorted(_API) + ["__version__"]
-
-
-def __getattr__(name):
-    module = _API.get(name)
-    if module is None:
-        raise AttributeError(f"module 'abacus' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return __all__
+__getattr__, __dir__, __all__ = public_api("abacus", _API, globals(), extra=["__version__"])

@@ -18,7 +18,7 @@ use, so ``import processing`` is cheap)::
 """
 from __future__ import annotations
 
-import importlib
+from processing.base.lazy import public_api
 
 #: public name -> module that defines it
 _API = {
@@ -38,17 +38,4 @@ _API = {
     "sv": "processing.backscatter.sv", "RecordChain": "processing.pipeline", "as_tree": "processing.base.dataset",
 }
 
-__all__ = sorted(_API)
-
-
-def __getattr__(name):
-    module = _API.get(name)
-    if module is None:
-        raise AttributeError(f"module 'processing' has no attribute {name!r}")
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return __all__
+__getattr__, __dir__, __all__ = public_api("processing", _API, globals(), extra=())
