@@ -232,13 +232,32 @@ class RecordChain:
             raise DatasetError(str(exc)) from None
 
     def _noise_magnitudes(self):
-        """|I| of the noise-only dataset the settings name (``noise.source: noise_file``)."""
+        """|I| of the noise-only dataset the settings name (``noise.source: noise_file``).
+
+        The file goes through the file gate (:mod:`processing.base.files`): settings that are
+        the dataset's own (its /Provenance scene, as ``abacus run`` processes) name it relative
+        to that scene's folder and it must lie there, as ``abacus scene check`` checks; settings
+        given otherwise (``--settings``, the API) name it relative to the working directory and
+        it must lie there. ``ABACUS_ALLOW_OUTSIDE_FILES=1`` lifts the rule."""
         st = self.settings
         if st.detect.noise.source != "noise_file":
             return None
         from processing.base.dataset import open_tree
+        from processing.base.files import FileRefused, check_file
         from processing.imaging.images import form_images
-        noise_rec = read_record(open_tree(st.detect.noise.file), source=str(st.detect.noise.file))
+        name = st.detect.noise.file
+        folder, key, home = Path.cwd(), "detect.noise.file", "the working directory"
+        prov = group_of(self.tree, PROVENANCE_GROUP)
+        scene_file = str(prov.attrs.get("scene_file", "")) if prov is not None else ""
+        if scene_file and resolve_settings(self.tree).detect.noise == st.detect.noise:
+            folder, key, home = Path(scene_file).parent, "processing.detect.noise.file", "the scene's folder"
+        try:
+            f = check_file(name, folder=folder, max_bytes=None, what="noise file", key=key,
+                           allow_folder=True, folder_name=home,
+                           accepts="a noise-only dataset (NetCDF4 or Zarr)")
+        except FileRefused as exc:
+            raise DatasetError(str(exc)) from None
+        noise_rec = read_record(open_tree(f.path), source=str(f.path))
         try:
             ni = form_images(noise_rec, st.image, noise_band_hz=self.noise_band_hz)
         except ValueError as exc:

@@ -9,6 +9,7 @@ float32 arithmetic accurate near the sonar.
 """
 from __future__ import annotations
 
+import io
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +20,8 @@ import trimesh
 from acoustics.frames import Pose
 from acoustics.seeds import ping_rng
 
-__all__ = ["SceneMesh", "build_mesh", "scene_meshes", "MeshError"]
+__all__ = ["SceneMesh", "build_mesh", "scene_meshes", "MeshError", "mesh_file_faces",
+           "mesh_file_read_bytes", "grid_file_shape"]
 
 
 class MeshError(ValueError):
@@ -162,13 +164,201 @@ def _transform_matrix(t):
     return mat
 
 
-def _load_grid(path: Path):
-    if path.suffix.lower() == ".npy":
-        return np.load(path)
-    return np.loadtxt(path, delimiter=",")
+_GRID_ACCEPTS = "a height grid (a .npy array of numbers or a CSV of numbers, one row per y)"
 
 
-def build_mesh(spec, *, name: str, key: str, resolve, seed: int = 0) -> trimesh.Trimesh:
+def _gate(file, folder, what, accepts):
+    """A mesh or grid file read through the file gate (:mod:`processing.base.files`)."""
+    from acoustics.scene.load import MAX_MESH_FILE_BYTES
+    from processing.base.files import FileRefused, read_bytes
+    try:
+        return read_bytes(file, folder=folder, max_bytes=MAX_MESH_FILE_BYTES, what=what,
+                          accepts=accepts)
+    except FileRefused as exc:
+        raise MeshError(str(exc)) from None
+
+
+def _npy_header(fh):
+    """(shape, dtype, offset of the data) of a .npy file's header, or None if it has none."""
+    from numpy.lib import format as npy
+    try:
+        version = npy.read_magic(fh)
+        if version == (1, 0):
+            shape, _, dtype = npy.read_array_header_1_0(fh)
+        elif version in ((2, 0), (3, 0)):
+            shape, _, dtype = npy.read_array_header_2_0(fh)
+        else:
+            return None
+    except (ValueError, OSError, EOFError, SyntaxError, TypeError):
+        return None
+    return tuple(int(n) for n in shape), dtype, fh.tell()
+
+
+def mesh_file_read_bytes(path) -> float:
+    """Memory of reading a mesh or grid file: its bytes and what the reader makes of them (3 x
+    the size for a binary format: .npy, GLB, binary STL and PLY; 11 x for text, whose parsers
+    hold the text, its lines and its numbers at once). 0 for a file that cannot be opened."""
+    import os
+    p = Path(path)
+    suffix = p.suffix.lower()
+    try:
+        size = os.stat(p).st_size
+        with open(p, "rb") as fh:
+            head = fh.read(1 << 16)
+    except OSError:
+        return 0.0
+    binary = suffix in (".npy", ".glb")
+    if suffix == ".stl" and len(head) >= 84:
+        binary = 84 + 50 * int.from_bytes(head[80:84], "little") == size
+    if suffix == ".ply":
+        parsed = _ply_header(head)
+        binary = parsed is not None and parsed[0]
+    return float(size) * (3.0 if binary else 11.0)
+
+
+class _GridRefused(ValueError):
+    """Why a .npy grid is refused (our words, never the file's)."""
+
+
+def _load_grid(f, data: bytes):
+    """The heights of a grid file's bytes: a .npy whose header is checked before any array is
+    made (numbers only — no pickles —, the shape the bytes hold), else comma-separated text."""
+    if f.path.suffix.lower() == ".npy":
+        head = _npy_header(io.BytesIO(data))
+        if head is None:
+            raise _GridRefused("it has no .npy header")
+        shape, dtype, offset = head
+        if dtype.kind not in "biuf" or dtype.hasobject:
+            raise _GridRefused("it holds no array of numbers (objects are never unpickled)")
+        if int(np.prod(shape, dtype=object)) * dtype.itemsize != len(data) - offset:
+            raise _GridRefused(f"its header's shape {shape} is not what its {len(data) - offset:,} "
+                               f"bytes of data hold")
+        return np.load(io.BytesIO(data), allow_pickle=False)
+    text = data.decode("utf-8-sig")
+    return np.loadtxt(io.StringIO(text), delimiter=",", comments=None, ndmin=2)
+
+
+def grid_file_shape(path) -> tuple[int, ...] | None:
+    """The shape a height-grid file holds, from its header before it is read (.npy, when the
+    header's shape is what the file's bytes hold), else None (text, or a header that does not
+    match the file: bounded by its size, see :func:`mesh_file_faces`)."""
+    import os
+    p = Path(path)
+    if p.suffix.lower() != ".npy":
+        return None
+    try:
+        size = os.stat(p).st_size
+        with open(p, "rb") as fh:
+            head = _npy_header(fh)
+    except OSError:
+        return None
+    if head is None:
+        return None
+    shape, dtype, offset = head
+    if int(np.prod(shape, dtype=object)) * dtype.itemsize != size - offset:
+        return None    # a header that lies about the bytes: the grid's reader refuses it
+    return shape
+
+
+_PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2,
+              "uint16": 2, "int": 4, "uint": 4, "int32": 4, "uint32": 4, "float": 4, "float32": 4,
+              "double": 8, "float64": 8}
+
+
+def _ply_header(head: bytes):
+    """(binary, [(element, count, fixed bytes of one, list (count bytes, item bytes) or None)],
+    bytes of the header) of a PLY file's first bytes, or None."""
+    end = head.find(b"end_header")
+    if not head.startswith(b"ply") or end < 0:
+        return None
+    stop = head.find(b"\n", end)
+    binary, elements = True, []
+    for line in head[:end].decode("ascii", "replace").split("\n"):
+        w = line.split()
+        if w[:2] == ["format", "ascii"]:
+            binary = False
+        elif len(w) == 3 and w[0] == "element" and w[2].isdigit():
+            elements.append([w[1], int(w[2]), 0, None])
+        elif len(w) >= 5 and w[:2] == ["property", "list"] and elements:
+            elements[-1][3] = (_PLY_SIZES.get(w[2], 1), _PLY_SIZES.get(w[3], 4))
+        elif len(w) == 3 and w[0] == "property" and elements:
+            elements[-1][2] += _PLY_SIZES.get(w[1], 8)
+    return binary, elements, (stop + 1 if stop >= 0 else len(head))
+
+
+def _ply_triangles(head: bytes, size: int):
+    """The most triangles a PLY file gives, from its header and size, or None (no header).
+    Binary, with one list (the faces'): the bytes left for the faces' vertex indices, each
+    polygon of k indices k − 2 triangles; else the face count, bounded by the size."""
+    parsed = _ply_header(head)
+    if parsed is None:
+        return None
+    binary, elements, header_bytes = parsed
+    faces = [e for e in elements if e[0] == "face"]
+    if not faces:
+        return None
+    _, n_faces, fixed, lst = faces[0]
+    lists = [e for e in elements if e[3] is not None]
+    if binary and lst is not None and len(lists) == 1:
+        other = sum(n * b for name, n, b, _ in elements if name != "face")
+        indices = (size - header_bytes - other - n_faces * (fixed + lst[0])) / lst[1]
+        return float(max(indices - 2.0 * n_faces, 0.0))
+    per_index = lst[1] if (binary and lst is not None) else 2
+    room = size / per_index - 2.0 * n_faces
+    return float(min(max(n_faces, room), size / per_index))   # a header may lie
+
+
+def mesh_file_faces(path) -> float:
+    """The most triangles a mesh or height-grid file can give, found without loading it: from
+    the header where the format has one (binary STL: its face count; PLY and OFF: the face
+    count and, for polygons, the bytes left for their vertex indices; .npy grids: the shape),
+    else from its size (ASCII STL: 80 bytes a facet; OBJ: a face line's index at least 2 bytes,
+    each beyond the second a triangle; glTF: 3 bytes a triangle; CSV grids: 2 bytes a value,
+    2 triangles a value). An upper bound: the estimate of memory
+    (:mod:`acoustics.simulation.budget`) must never be below what the file makes. 0 for a file
+    that cannot be opened (the file gate reports it)."""
+    import os
+    p = Path(path)
+    suffix = p.suffix.lower()
+    try:
+        size = os.stat(p).st_size
+        if suffix in (".npy", ".csv", ".txt"):
+            shape = grid_file_shape(p)
+            if shape is not None:
+                if len(shape) != 2:
+                    return 0.0
+                return 2.0 * max(shape[0] - 1, 0) * max(shape[1] - 1, 0)
+            return float(size) / (4.0 if suffix == ".npy" else 1.0)
+        with open(p, "rb") as fh:
+            head = fh.read(1 << 16)
+    except OSError:
+        return 0.0
+    if suffix == ".stl" and len(head) >= 84:
+        n = int.from_bytes(head[80:84], "little")
+        if 84 + 50 * n == size:
+            return float(n)
+        return size / 80.0
+    if suffix == ".ply":
+        bound = _ply_triangles(head, size)
+        if bound is not None:
+            return bound
+    if suffix == ".off":
+        words = head.decode("ascii", "replace").split()
+        if words and words[0].endswith("OFF") and len(words) >= 3 and words[2].isdigit():
+            faces = int(words[2])
+            return float(min(max(faces, size / 2.0 - 2.0 * faces), size / 2.0))
+    if suffix in (".glb", ".gltf"):
+        return size / 3.0
+    return size / 2.0     # OBJ and anything unrecognised: 2 bytes an index, a triangle each
+
+
+def _suffixes():
+    from acoustics.scene.meshes_spec import MESH_SUFFIXES
+    return MESH_SUFFIXES
+
+
+def build_mesh(spec, *, name: str, key: str, resolve, seed: int = 0,
+               folder=None) -> trimesh.Trimesh:
     """Build one mesh in the frame its spec is written in (before the pose).
 
     Parameters
@@ -180,12 +370,16 @@ def build_mesh(spec, *, name: str, key: str, resolve, seed: int = 0) -> trimesh.
         Turns a path written in the scene into a file path.
     seed : int
         The scene's seed (rough floors).
+    folder : str or Path, optional
+        The folder files must lie in (the file gate, :mod:`processing.base.files`); default
+        ``resolve(".")``, the scene file's folder.
 
     Raises
     ------
     MeshError
     """
     shape = spec.shape
+    folder = resolve(".") if folder is None else folder
     where = f"{key} ({name!r})"
     try:
         if shape == "plane":
@@ -202,15 +396,16 @@ def build_mesh(spec, *, name: str, key: str, resolve, seed: int = 0) -> trimesh.
         elif shape == "rough_floor":
             m = _rough_floor(spec, seed)
         elif shape == "height_grid":
-            path = resolve(spec.file)
-            if not path.exists():
-                raise MeshError(f"{where}: height grid file {path} does not exist")
+            f, data = _gate(spec.file, folder, "height grid file", _GRID_ACCEPTS)
+            path = f.path
             try:
-                z = np.asarray(_load_grid(path), float)
-            except (ValueError, OSError, EOFError):
-                # never echo the file's contents: it may not be the user's
+                z = np.asarray(_load_grid(f, data), float)
+            except (ValueError, OSError, EOFError, UnicodeDecodeError) as exc:
+                # never echo the file's contents (a reader's message may): it may not be the user's
+                why = f": {exc}" if isinstance(exc, _GridRefused) else ""
                 raise MeshError(f"{where}: {path} is not a height grid (a .npy array or a CSV "
-                                f"of numbers, one row per y)") from None
+                                f"of numbers, one row per y){why}") from None
+            del data
             if z.ndim != 2 or min(z.shape) < 2:
                 raise MeshError(f"{where}: {path} must hold a 2-D grid of at least 2 x 2 heights")
             x = spec.origin_m[0] + np.arange(z.shape[1]) * spec.spacing_m[0]
@@ -234,15 +429,19 @@ def build_mesh(spec, *, name: str, key: str, resolve, seed: int = 0) -> trimesh.
             m = trimesh.creation.box(extents=spec.size_m)
             m.apply_translation(spec.center_m)
         else:
-            path = resolve(spec.file)
-            if not path.exists():
-                raise MeshError(f"{where}: mesh file {path} does not exist")
+            f, data = _gate(spec.file, folder, "mesh file",
+                            f"a mesh file ({', '.join(s.lstrip('.') for s in _suffixes())})")
+            path = f.path
             try:
-                loaded = trimesh.load(path, force="mesh", process=False)
+                # from the bytes the gate read, with no resolver: a file that names others (an
+                # OBJ's material library, a glTF's buffers) cannot make trimesh read them
+                loaded = trimesh.load(io.BytesIO(data), file_type=path.suffix.lower().lstrip("."),
+                                      force="mesh", process=False)
             except Exception as exc:  # any reader failure is the user's file; never echo it
                 raise MeshError(f"{where}: cannot read mesh file {path} as "
                                 f"{path.suffix.lstrip('.').upper() or 'a mesh'} "
                                 f"({exc.__class__.__name__})") from None
+            del data
             if not isinstance(loaded, trimesh.Trimesh):
                 raise MeshError(f"{where}: {path} holds no triangle mesh")
             m = loaded

@@ -8,10 +8,17 @@ from acoustics.scene.builtin import resolve_scene_argument
 from acoustics.scene.checks import cross_check
 from acoustics.scene.errors import SceneError, SceneWarning, key_tuple
 from acoustics.scene.schema import Scene
+from acoustics.sonar.platform import MotionFileError, read_motion_csv
 from processing.base.config import ConfigError, parse_yaml, read_yaml
+from processing.base.files import FileRefused, check_file
 
 __all__ = ["load_scene", "scene_from_text", "scene_from_resolved_text", "validate_scene", "mesh_files",
-           "key_tuple"]
+           "key_tuple", "MotionSceneError"]
+
+
+class MotionSceneError(SceneError, MotionFileError):
+    """A motion file a scene names that cannot be used, found at the scene's load: a
+    :class:`SceneError` and a :class:`~acoustics.sonar.platform.MotionFileError`."""
 
 
 def validate_scene(data, *, file, marks=None, source_path=None) -> Scene:
@@ -101,37 +108,34 @@ def mesh_files(scene: Scene):
 
 #: mesh and height-grid files a scene may read (bytes)
 MAX_MESH_FILE_BYTES = 256 * 1024 ** 2
-#: set to 1 to let scenes read mesh files outside their own folder
-ALLOW_OUTSIDE_ENV = "ABACUS_ALLOW_OUTSIDE_FILES"
 
 
 def _check_files(scene: Scene, path: Path, marks):
-    """Mesh and height-grid files are checked at load, not mid-run: they exist, are regular
-    files of a bounded size, and lie in the scene file's folder (or below it) — a scene may not
-    read files elsewhere (``/etc/passwd``, another user's data) unless the person running it sets
-    ``ABACUS_ALLOW_OUTSIDE_FILES=1``."""
-    import os
+    """Every file a scene names goes through the file gate (:mod:`processing.base.files`) at
+    load, not mid-run: mesh and height-grid files exist, are regular files of a bounded size and
+    lie in the scene file's folder (or below it) — a scene may not read files elsewhere
+    (``/etc/passwd``, another user's data) unless the person running it sets
+    ``ABACUS_ALLOW_OUTSIDE_FILES=1``; a motion file is read and validated whole (its rows are
+    kept for the run), so every problem of it is reported here."""
     home = path.resolve().parent
-    outside_ok = os.environ.get(ALLOW_OUTSIDE_ENV, "").strip() in ("1", "true", "yes")
-    for key, file in mesh_files(scene):
-        target = scene.resolve_path(file)
+
+    def where(key):
         line = marks.get(tuple(key_tuple(key)))
-        where = f"{path}:{line}" if line else str(path)
-        resolved = target.resolve()
-        if not outside_ok and not resolved.is_relative_to(home):
-            raise SceneError(f"{where}: {key}: {file!r} lies outside the scene's folder {home}; "
-                             f"mesh files must be in it or below it (set {ALLOW_OUTSIDE_ENV}=1 to "
-                             f"allow other places)")
-        if not target.exists():
-            raise SceneError(f"{where}: {key}: file {file!r} not found (looked for {target}); "
-                             f"paths are relative to the scene file's folder")
-        if not target.is_file():
-            raise SceneError(f"{where}: {key}: {file!r} is not a regular file (a folder, device or "
-                             f"pipe); give a mesh or grid file")
-        size = target.stat().st_size
-        if size > MAX_MESH_FILE_BYTES:
-            raise SceneError(f"{where}: {key}: {file!r} is {size / 1e6:.0f} MB; mesh files are at "
-                             f"most {MAX_MESH_FILE_BYTES / 1e6:.0f} MB")
+        return f"{path}:{line}" if line else str(path)
+
+    for key, file in mesh_files(scene):
+        try:
+            check_file(file, folder=home, max_bytes=MAX_MESH_FILE_BYTES, what="mesh file", key=key,
+                       where=where(key), accepts="a mesh or height-grid file")
+        except FileRefused as exc:
+            raise SceneError(str(exc)) from None
+    motion = scene.sonar.motion
+    if motion is not None and motion.kind == "file":
+        key = "sonar.motion.file"
+        try:
+            read_motion_csv(motion.file, folder=home, key=key, where=where(key))
+        except MotionFileError as exc:
+            raise MotionSceneError(str(exc)) from None
 
 
 def scene_from_text(text: str, *, name: str = "<text>", check: bool = False) -> Scene:

@@ -5,6 +5,17 @@ advance between pings, the platform takes a new pose each ping. Within a ping po
 (the 7 ms pulse and the 90 ms record move a fish less than a range cell), but the Doppler shift
 of a closing speed does move its echo through the LFM's range–Doppler coupling: that is
 ``effects.doppler`` (docs/accuracy.md, "within-ping motion", has the numbers).
+
+A motion file (``sonar.motion: {kind: file, file: ...}``) is user input, read through the file
+gate (:mod:`processing.base.files`) when the scene is loaded — so ``abacus scene check``
+reports what ``simulate`` would meet: it lies in the scene's folder (or below), is a regular
+UTF-8 text file (a byte-order mark is allowed) of at most 64 MB and 1 000 000 rows (2.8 h at
+100 Hz), its first line a header naming ``time_s`` and any of the other columns once each, then
+one row of numbers per time, separated by commas. Semicolons, tabs or decimal commas are refused
+with a line saying commas are expected (a ``;`` file is ambiguous: its ``0,5`` may be a number
+or two). Times increase strictly; values are bounded as the inline series' are, by one rule
+(:data:`acoustics.sonar.platform.MOTION_BOUNDS`: angles within ±360°, heave within ±20 m).
+Every problem is one line with the file, line and column, never the text found there.
 """
 from __future__ import annotations
 
@@ -12,6 +23,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
+from acoustics.sonar.platform import MOTION_BOUNDS, motion_time_problem, motion_value_problem
 from processing.base.config import AngleDeg, ConfigModel, NonNegativeReal, PositiveCount, Real
 
 __all__ = ["SwimSpec", "SwellSpec", "MotionSeriesSpec", "PlatformMotionSpec"]
@@ -65,6 +77,9 @@ class MotionSeriesSpec(ConfigModel):
     """A measured motion series, interpolated linearly at the ping times (held at its ends).
     Angles in degrees, heave in metres (positive up)."""
 
+    # bounded as a motion file is (acoustics.sonar.platform.MOTION_BOUNDS, the one rule of
+    # both): angles within ±360°, heave within ±20 m
+
     time_s: tuple[Real, ...]
     roll_deg: tuple[Real, ...] | None = None
     pitch_deg: tuple[Real, ...] | None = None
@@ -74,16 +89,17 @@ class MotionSeriesSpec(ConfigModel):
     @model_validator(mode="after")
     def _consistent(self):
         n = len(self.time_s)
-        if n < 1:
-            raise ValueError("time_s needs at least one time")
-        if any(b <= a for a, b in zip(self.time_s, self.time_s[1:])):
-            raise ValueError("time_s must increase strictly")
-        for key in ("roll_deg", "pitch_deg", "yaw_deg", "heave_m"):
+        problem = motion_time_problem(self.time_s)
+        if problem is not None:
+            raise ValueError(problem[1])
+        for key in MOTION_BOUNDS:
             v = getattr(self, key)
             if v is not None and len(v) != n:
                 raise ValueError(f"{key} has {len(v)} values for {n} times")
-            if v is not None and key != "heave_m" and any(abs(x) > 360 for x in v):
-                raise ValueError(f"{key} must stay within ±360°")
+            for i, x in enumerate(v or ()):
+                bad = motion_value_problem(key, x)
+                if bad is not None:
+                    raise ValueError(f"{key}[{i}]: {bad}")
         return self
 
 

@@ -10,7 +10,17 @@ instead of dying half-way with an allocation error. The terms, in bytes:
 ``scatterers``    per ping: targets (a population by density: its Poisson mean + 6 σ), boundary
                   facets (reverberation rays) and mesh-target facets, ≈ 200 bytes each, and with
                   Huygens directivity one complex number per scatterer and element;
-``meshes``        faces x 100 (vertices, faces, normals, Embree's copy);
+``schools``       drawing a school (random sequential adsorption): its candidates, k-d trees and
+                  the kept draws (up to 17), ≈ 800 bytes a fish;
+``meshes``        faces x 100 (vertices, faces, normals, Embree's copy); the faces of a file
+                  come from its header before it is read (STL, PLY, OFF, .npy grids), else from
+                  its size (:func:`acoustics.paths.meshes.mesh_file_faces`); procedural shapes
+                  from their keys (a plane's ``segments``, a grid's ``size_m / resolution_m``);
+``mesh files``    reading them: the bytes and what the reader makes of them (3 x a binary
+                  file, 11 x a text file);
+``motion``        a motion series: its rows (a file's: at most its size / 4, or the row cap)
+                  x 5 columns x 8 bytes, held a few times over (parsing, interpolation), and a
+                  motion file's text (3 x its size);
 ``writing``       the samples again (the NetCDF writer copies each variable once);
 ``runtime``       thread pools, FFT plans, xarray objects: 100 MB.
 
@@ -21,37 +31,98 @@ from __future__ import annotations
 
 import math
 
-from processing.base.resources import Estimate
+from processing.base.resources import Driver, Estimate
 
-__all__ = ["estimate_scene", "mesh_faces", "population_bound", "reverberation_rays"]
+__all__ = ["estimate_scene", "mesh_faces", "mesh_face_key", "population_bound", "reverberation_rays",
+           "motion_rows"]
 
 _SCATTERER_BYTES = 200.0
 _FACE_BYTES = 100.0
+_SCHOOL_FISH_BYTES = 800.0
+_MOTION_ROW_BYTES = 5 * 8 * 6.0
+#: what no estimate exceeds (a count of 1e300 is "too many", not an OverflowError)
+_HUGE = 1e30
+
+
+def _finite(x: float) -> float:
+    x = float(x)
+    return x if math.isfinite(x) and x < _HUGE else _HUGE
 
 
 def population_bound(pop) -> int:
-    """Most targets a population puts in a ping: its count, or mean + 6 σ of its Poisson draw."""
+    """Most targets a population puts in a ping: its count, or mean + 6 σ of its Poisson draw
+    (schools too: a school by density draws a Poisson number of fish in its ellipsoid)."""
     if getattr(pop, "count", None) is not None:
         return int(pop.count)
-    mean = float(pop.density_per_m3) * float(pop.volume_m3)
-    return int(math.ceil(mean + 6.0 * math.sqrt(mean) + 1))
+    mean = _finite(float(pop.density_per_m3) * _finite(pop.volume_m3))
+    return int(_finite(math.ceil(mean + 6.0 * math.sqrt(mean) + 1)))
 
 
-def mesh_faces(spec) -> int:
-    """Triangles a mesh spec builds (files: the size of the file as a bound, 50 bytes a face)."""
+def mesh_faces(spec, resolve=None) -> float:
+    """Triangles a mesh spec builds, an upper bound known before it is built.
+
+    Parameters
+    ----------
+    spec : BoundarySpec or MeshTargetSpec
+    resolve : callable(str) -> Path, optional
+        The scene's :meth:`~acoustics.scene.schema.Scene.resolve_path`: files (mesh files,
+        height grids) are then bounded from their headers or sizes
+        (:func:`acoustics.paths.meshes.mesh_file_faces`), without being read; without it they
+        count 0.
+    """
     shape = spec.mesh
     kind = getattr(shape, "shape", "")
     if kind == "plane":
-        return 2 * int(shape.segments[0]) * int(shape.segments[1])
+        return _finite(2.0 * int(shape.segments[0]) * int(shape.segments[1]))
     if kind in ("rough_floor", "wind_sea", "swell"):
-        nx = math.ceil(shape.size_m[0] / shape.resolution_m) + 1
-        ny = math.ceil(shape.size_m[1] / shape.resolution_m) + 1
-        return 2 * nx * ny
+        nx = _finite(shape.size_m[0] / shape.resolution_m)
+        ny = _finite(shape.size_m[1] / shape.resolution_m)
+        return _finite(2.0 * (math.ceil(nx) + 1) * (math.ceil(ny) + 1)) if nx < _HUGE and ny < _HUGE else _HUGE
     if kind in ("sphere", "spheroid"):
-        return 20 * 4 ** int(shape.subdivisions)
+        return float(20 * 4 ** int(shape.subdivisions))
     if kind == "box":
-        return 12
-    return 0  # files: bounded by their size when read (paths/meshes.py)
+        return 12.0
+    file = getattr(shape, "file", None)
+    if file is None or resolve is None:
+        return 0.0
+    from acoustics.paths.meshes import mesh_file_faces
+    return _finite(mesh_file_faces(resolve(file)))
+
+
+def mesh_face_key(spec) -> str:
+    """The key of a mesh spec that sets its number of faces (relative to its ``mesh``)."""
+    kind = getattr(spec.mesh, "shape", "")
+    return {"plane": "segments", "rough_floor": "resolution_m", "wind_sea": "resolution_m",
+            "swell": "resolution_m", "sphere": "subdivisions", "spheroid": "subdivisions",
+            "box": "size_m"}.get(kind, "file")
+
+
+def _file_bytes(spec, resolve) -> float:
+    """Memory of reading a mesh or grid file (:func:`acoustics.paths.meshes.mesh_file_read_bytes`)."""
+    file = getattr(spec.mesh, "file", None)
+    if file is None or resolve is None:
+        return 0.0
+    from acoustics.paths.meshes import mesh_file_read_bytes
+    return _finite(mesh_file_read_bytes(resolve(file)))
+
+
+def motion_rows(scene) -> tuple[float, float]:
+    """(rows, bytes of the file) of a scene's motion series, known before a file is read: an
+    inline series' times; a file's rows at most one per 4 bytes ("0,0" and its line end) and
+    at most :data:`~acoustics.sonar.platform.MAX_MOTION_ROWS`."""
+    motion = scene.sonar.motion
+    if motion is None or motion.kind == "swell":
+        return 0.0, 0.0
+    if motion.kind == "series":
+        return float(len(motion.series.time_s)), 0.0
+    import os
+
+    from acoustics.sonar.platform import MAX_MOTION_ROWS
+    try:
+        size = float(os.stat(scene.resolve_path(motion.file)).st_size)
+    except (OSError, ValueError):
+        return 0.0, 0.0
+    return min(float(MAX_MOTION_ROWS), size / 4.0), size
 
 
 def reverberation_rays(scene, sonar) -> int:
@@ -96,6 +167,7 @@ def estimate_scene(scene, *, pings: int | None = None, write: bool = True,
     -------
     Estimate
     """
+    from acoustics.scene.targets_spec import SchoolPopulation
     from acoustics.sonar.build import build_sonar
     sonar = build_sonar(scene)
     n_p = int(scene.pings.count if pings is None else pings)
@@ -106,23 +178,59 @@ def estimate_scene(scene, *, pings: int | None = None, write: bool = True,
     up = fx.oversampling if fx.synthesis == "fast" else 1
     samples = float(n_p) * n_ch * n_s * 8
     synthesis = 4.0 * n_ch * up * (n_s + pulse) * 16
-    n_targets = len(scene.targets.points) + sum(population_bound(p) for p in scene.targets.populations)
+    resolve = scene.resolve_path
+    per_pop = [float(population_bound(p)) for p in scene.targets.populations]
+    n_targets = len(scene.targets.points) + sum(per_pop)
     rays = reverberation_rays(scene, sonar)
-    faces = sum(mesh_faces(s) for s in (*scene.boundaries, *scene.targets.meshes))
-    mesh_target_faces = sum(mesh_faces(s) for s in scene.targets.meshes)
-    n_scat = n_targets * (1 + 2 * fx.multipath_order * max(1, len(scene.boundaries))) + rays + mesh_target_faces
-    scatterers = n_scat * _SCATTERER_BYTES
-    if fx.directivity == "huygens":
-        scatterers += float(n_scat) * n_ch * 16
+    mesh_specs = [(f"boundaries[{i}]", b) for i, b in enumerate(scene.boundaries)]
+    mesh_specs += [(f"targets.meshes[{i}]", t) for i, t in enumerate(scene.targets.meshes)]
+    per_mesh = [mesh_faces(spec, resolve) for _, spec in mesh_specs]
+    faces = sum(per_mesh)
+    mesh_target_faces = sum(n for (key, _), n in zip(mesh_specs, per_mesh) if key.startswith("targets"))
+    per_target = (1 + 2 * fx.multipath_order * max(1, len(scene.boundaries)))
+    scatterer_bytes = _SCATTERER_BYTES + (n_ch * 16.0 if fx.directivity == "huygens" else 0.0)
+    n_scat = n_targets * per_target + rays + mesh_target_faces
+    scatterers = n_scat * scatterer_bytes
+    schools = sum(n for n, p in zip(per_pop, scene.targets.populations)
+                  if isinstance(p, SchoolPopulation)) * _SCHOOL_FISH_BYTES
     meshes = faces * _FACE_BYTES + rays * 64.0
+    file_bytes = [_file_bytes(spec, resolve) for _, spec in mesh_specs]
+    rows, motion_file = motion_rows(scene)
+    motion = rows * _MOTION_ROW_BYTES + 3.0 * motion_file
     terms = [("samples", samples), ("synthesis per ping", synthesis), ("scatterers per ping", scatterers),
              ("meshes and rays", meshes), ("runtime", _RUNTIME_BYTES)]
+    for name, b in (("schools", schools), ("mesh files", sum(file_bytes)), ("motion", motion)):
+        if b > 0:
+            terms.append((name, b))
     terms += list(extra_terms)
     stored = sum(b for name, b in extra_terms if name == "stored images")
     if write:
         terms.append(("writing", samples))
     memory = sum(b for _, b in terms)
     output = (samples + stored + n_p * n_targets * 200.0) if write else 0.0
-    return Estimate(memory, output, terms,
+    # the keys the memory grows with, and their shares (a refusal names the largest)
+    chain = sum(b for name, b in extra_terms if name not in ("figures", "runtime"))
+    per_run = samples * (2 if write else 1) + chain
+    drivers = [Driver("pings.count (or --pings)", n_p, "pings", per_run),
+               Driver("sampling.samples", n_s, "samples a ping", per_run + synthesis)]
+    for j, (n, p) in enumerate(zip(per_pop, scene.targets.populations)):
+        share = n * (per_target * scatterer_bytes + (_SCHOOL_FISH_BYTES if isinstance(p, SchoolPopulation) else 0.0))
+        if p.count is not None:
+            drivers.append(Driver(f"targets.populations[{j}].count", n, "targets", share))
+        else:   # the draw grows with the density (its bound, mean + 6 σ, a little faster)
+            drivers.append(Driver(f"targets.populations[{j}].density_per_m3", p.density_per_m3,
+                                  "per m³", share))
+    for (key, spec), n, fb in zip(mesh_specs, per_mesh, file_bytes):
+        share = n * (_FACE_BYTES + (scatterer_bytes if key.startswith("targets") else 0.0)) + fb
+        drivers.append(Driver(f"{key}.mesh.{mesh_face_key(spec)}", n, "faces", share))
+    if rays:
+        drivers.append(Driver("effects.reverberation.rays_per_square_degree", rays, "rays",
+                              rays * (64.0 + scatterer_bytes)))
+    if rows:
+        key = "sonar.motion.file" if scene.sonar.motion.kind == "file" else "sonar.motion.series"
+        drivers.append(Driver(key, rows, "rows", motion))
+    return Estimate(_finite(memory), _finite(output), terms,
                     keys=("pings.count (or --pings), sampling.samples, the targets' count or "
-                          "density, effects.reverberation.rays_per_square_degree, mesh segments"))
+                          "density, effects.reverberation.rays_per_square_degree, mesh segments, "
+                          "resolutions and files, the motion file's rows"),
+                    drivers=drivers)

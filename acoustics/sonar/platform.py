@@ -11,19 +11,60 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from acoustics.frames import Pose
+from processing.base.config import ConfigError
 
-__all__ = ["attitude_rotation", "PlatformMotion", "read_motion_csv", "MotionFileError", "pose_at_time_zero"]
+__all__ = ["attitude_rotation", "PlatformMotion", "read_motion_csv", "MotionFileError", "pose_at_time_zero",
+           "MOTION_BOUNDS", "MOTION_COLUMNS", "motion_value_problem", "motion_time_problem",
+           "MAX_MOTION_FILE_BYTES", "MAX_MOTION_ROWS"]
 
-_COLUMNS = ("time_s", "roll_deg", "pitch_deg", "yaw_deg", "heave_m")
+#: a motion file's most bytes (checked before it is read) and rows (before it is parsed): a
+#: million rows are 2.8 h at 100 Hz (28 h at 10 Hz); a longer log is thinned out or cut to the run
+MAX_MOTION_FILE_BYTES = 64_000_000
+MAX_MOTION_ROWS = 1_000_000
 
 
-class MotionFileError(ValueError):
-    """A motion CSV that cannot be read (the message names the file, line and column)."""
+class MotionFileError(ConfigError):
+    """A motion CSV that cannot be used (the message names the file, line and column, the key
+    and what is accepted; never the text found there). A scene's load raises it as a
+    :class:`~acoustics.scene.SceneError` too."""
+
+
+#: the largest |value| of each column of a motion series (degrees; metres for heave): the same
+#: bound whether the series is written inline (``series``) or read from a file (``file``) —
+#: angles within a turn either way, heave within the 20 m of the largest swell model
+#: (:class:`~acoustics.scene.motion_spec.SwellSpec`'s ``heave_amplitude_m``)
+MOTION_BOUNDS = {"roll_deg": (360.0, "°"), "pitch_deg": (360.0, "°"), "yaw_deg": (360.0, "°"),
+                 "heave_m": (20.0, " m")}
+#: the columns of a motion series, time first
+MOTION_COLUMNS = ("time_s", *MOTION_BOUNDS)
+
+
+def motion_value_problem(column: str, value: float) -> str | None:
+    """What is wrong with one value of a motion series' column, or None (the rule both forms of
+    a series — inline and file — follow)."""
+    if not math.isfinite(value):
+        return "not a finite number"
+    if column in MOTION_BOUNDS:
+        bound, unit = MOTION_BOUNDS[column]
+        if abs(value) > bound:
+            return f"{value:g}{unit} is outside ±{bound:g}{unit}"
+    return None
+
+
+def motion_time_problem(time_s) -> tuple[int, str] | None:
+    """(index, what is wrong) of the first time of a series that does not follow the one
+    before strictly, or None; (0, ...) for an empty series."""
+    if len(time_s) < 1:
+        return 0, "time_s needs at least one time"
+    for i in range(1, len(time_s)):
+        if not time_s[i] > time_s[i - 1]:
+            return i, (f"time_s must increase strictly: {time_s[i]:g} s follows "
+                       f"{time_s[i - 1]:g} s")
+    return None
 
 
 def attitude_rotation(roll_rad, pitch_rad, yaw_rad) -> np.ndarray:
@@ -43,47 +84,208 @@ def attitude_rotation(roll_rad, pitch_rad, yaw_rad) -> np.ndarray:
     return out
 
 
-def read_motion_csv(path: Path) -> dict:
-    """Columns of a motion CSV (header ``time_s`` and any of roll_deg, pitch_deg, yaw_deg,
-    heave_m), as float arrays.
+_ACCEPTED = ("a header naming time_s and any of roll_deg, pitch_deg, yaw_deg, heave_m, then one "
+             "row of numbers per time, separated by commas")
+_CACHE: dict = {}
+
+
+def read_motion_csv(path, *, folder=None, key: str = "sonar.motion.file",
+                    where: str | None = None) -> dict:
+    """Columns of a motion CSV, as float arrays, read through the file gate.
+
+    The file (:class:`~acoustics.scene.motion_spec.PlatformMotionSpec` describes it) is UTF-8
+    text (a byte-order mark allowed) of at most :data:`MAX_MOTION_FILE_BYTES` and
+    :data:`MAX_MOTION_ROWS` rows: a header naming ``time_s`` and any of ``roll_deg``,
+    ``pitch_deg``, ``yaw_deg``, ``heave_m`` once each, then one row of numbers per time,
+    separated by commas (``;`` or tabs are refused: commas are expected); blank lines are
+    skipped. Times increase strictly; values stay within
+    :data:`MOTION_BOUNDS`, as the inline series' do. A file read
+    once is kept (keyed by its path, size and modification time), as the scene's load, its
+    checks and the simulation all read it.
+
+    Parameters
+    ----------
+    path : str or Path
+        As the scene writes it (relative to ``folder``), or a path.
+    folder : str or Path, optional
+        The scene file's folder, where the file must lie (:func:`processing.base.files.check_file`);
+        None: the path is taken as it is (a caller that named the file itself).
+    key, where : str
+        The scene key and the place naming it (``"scene.yaml:12"``), for messages.
+
+    Returns
+    -------
+    dict of str to ndarray
+        ``time_s`` and the columns the header names, each shape (T,), read-only.
 
     Raises
     ------
     MotionFileError
+        Every problem, as one line: file, line and column, key, what is accepted.
     """
-    import csv
-    out: dict = {}
+    import os
+
+    from processing.base.files import FileRefused, check_file, read_text
+    gate = dict(folder=folder, key=key, where=where, what="motion file",
+                accepts="a CSV file of motion samples (" + _ACCEPTED + ")")
     try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise MotionFileError(f"{path}: cannot be read as CSV text ({exc.__class__.__name__})") from None
-    if not rows:
-        raise MotionFileError(f"{path}: empty; expected a header row with time_s")
-    head = [h.strip() for h in rows[0]]
-    unknown = [h for h in head if h not in _COLUMNS]
-    if "time_s" not in head or unknown:
-        raise MotionFileError(f"{path}:1: header must name time_s and any of {', '.join(_COLUMNS[1:])}"
-                              + (f" (unknown: {', '.join(unknown[:3])})" if unknown else ""))
-    cols = {h: [] for h in head}
-    for i, row in enumerate(rows[1:], start=2):
-        if not any(c.strip() for c in row):
-            continue
-        if len(row) != len(head):
-            raise MotionFileError(f"{path}:{i}: {len(row)} values for {len(head)} columns")
-        for h, c in zip(head, row):
+        f = check_file(path, max_bytes=MAX_MOTION_FILE_BYTES, **gate)
+        st = os.stat(f.path)
+        cache_key = (str(f.path.resolve()), st.st_size, st.st_mtime_ns, st.st_ino)
+        if cache_key in _CACHE:
+            return dict(_CACHE[cache_key])
+        f, text = read_text(path, max_bytes=MAX_MOTION_FILE_BYTES, **gate)
+    except FileRefused as exc:
+        raise MotionFileError(str(exc)) from None
+    try:
+        out = _parse_motion(text, f)
+    except FileRefused as exc:
+        raise MotionFileError(str(exc)) from None
+    for v in out.values():
+        v.flags.writeable = False
+    if len(_CACHE) >= 4:
+        _CACHE.clear()
+    _CACHE[cache_key] = out
+    return dict(out)
+
+
+def _parse_motion(text: str, f) -> dict:
+    """The columns of a motion file's text; a FileRefused naming line and column otherwise."""
+    import io
+
+    text = text.replace("\r\n", "\n").replace("\r", "\n")
+    n_lines = text.count("\n") + 1
+    if n_lines > MAX_MOTION_ROWS + 1:
+        raise f.refuse(f"{f.path}: {n_lines:,} lines; a motion file holds at most "
+                       f"{MAX_MOTION_ROWS:,} rows (2.8 h at 100 Hz): thin it out (10 Hz is plenty "
+                       f"for a platform's motion) or cut it to the run")
+    head_at = 0
+    lines = io.StringIO(text)
+    header = None
+    for ln, line in enumerate(lines, start=1):
+        if line.strip():
+            header, head_at = line.rstrip("\n"), ln
+            break
+    if header is None:
+        raise f.refuse(f"{f.path}: empty; expected {_ACCEPTED}")
+    _separators(header, f, head_at)
+    names, starts = _fields(header)
+    for j, (h, c) in enumerate(zip(names, starts), start=1):
+        if h not in MOTION_COLUMNS:
+            what = "is empty" if not h else f"is not one of {', '.join(MOTION_COLUMNS)}"
+            raise f.refuse(f"{f.path}:{head_at}:{c}: header column {j} {what}; expected {_ACCEPTED}")
+        if names.index(h) != j - 1:
+            raise f.refuse(f"{f.path}:{head_at}:{c}: header column {j} names {h} a second time; "
+                           f"each column once")
+    if "time_s" not in names:
+        raise f.refuse(f"{f.path}:{head_at}: the header names no time_s column; expected {_ACCEPTED}")
+    rest = lines.read()   # the data follow the header's line
+    values = _fast_values(rest, len(names))
+    if values is None or not _valid(values, names):
+        values = _located_values(rest, names, f, head_at)
+    if values.shape[0] == 0:
+        raise f.refuse(f"{f.path}: a header but no data rows; expected {_ACCEPTED}")
+    return {h: np.ascontiguousarray(values[:, j]) for j, h in enumerate(names)}
+
+
+def _separators(line: str, f, ln: int):
+    for sep, name in ((";", "semicolons"), ("\t", "tabs")):
+        if sep in line:
+            raise f.refuse(f"{f.path}:{ln}:{line.index(sep) + 1}: values separated by {name}; a "
+                           f"motion file separates them by commas (and writes decimals with a "
+                           f"point): {_ACCEPTED}")
+
+
+def _fields(line: str):
+    """Stripped fields of a comma-separated line and the column (from 1) where each starts."""
+    parts = line.split(",")
+    starts, at = [], 1
+    for p in parts:
+        starts.append(at + len(p) - len(p.lstrip()))
+        at += len(p) + 1
+    return [p.strip() for p in parts], starts
+
+
+def _fast_values(rest: str, n: int):
+    """The data rows parsed by a compiled reader (pandas' C parser, else numpy's; little memory),
+    or None: the slow reader then finds the problem and names its line and column."""
+    import csv
+    import io
+    import warnings
+    if not rest.strip():
+        return np.zeros((0, n))
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
             try:
-                v = float(c)
+                import pandas as pd
+            except ImportError:   # pragma: no cover - pandas comes with xarray
+                v = np.loadtxt(io.StringIO(rest), delimiter=",", dtype=float, ndmin=2, comments=None)
+            else:
+                v = pd.read_csv(io.StringIO(rest), header=None, dtype=float, engine="c",
+                                quoting=csv.QUOTE_NONE, skip_blank_lines=True).to_numpy(float)
+    except Exception:   # any refusal of the fast reader: the slow one says where and why
+        return None
+    return v if v.ndim == 2 and v.shape[1] == n else None
+
+
+def _valid(values, names) -> bool:
+    if not np.all(np.isfinite(values)):
+        return False
+    for j, h in enumerate(names):
+        if h in MOTION_BOUNDS and np.any(np.abs(values[:, j]) > MOTION_BOUNDS[h][0]):
+            return False
+    t = values[:, names.index("time_s")]
+    return bool(np.all(np.diff(t) > 0))
+
+
+def _located_values(rest: str, names, f, head_at: int):
+    """The data rows read one by one, the first problem named with its line and column."""
+    import io
+    from array import array
+
+    cols = [array("d") for _ in names]
+    it = names.index("time_s")
+    previous = None
+    for ln, line in enumerate(io.StringIO(rest), start=head_at + 1):
+        line = line.rstrip("\n")
+        if not line.strip():
+            continue
+        _separators(line, f, ln)
+        fields, starts = _fields(line)
+        if len(fields) != len(names):
+            col = starts[len(names)] if len(fields) > len(names) else len(line) + 1
+            raise f.refuse(f"{f.path}:{ln}:{col}: {len(fields)} values for the header's "
+                           f"{len(names)} columns; every row holds one value per column, "
+                           f"separated by commas")
+        for j, (h, s, c) in enumerate(zip(names, fields, starts)):
+            where = f"{f.path}:{ln}: column {h} (col {c})"
+            if not s:
+                raise f.refuse(f"{where}: empty; give a number")
+            try:
+                v = float(s)
             except ValueError:
-                raise MotionFileError(f"{path}:{i}: column {h}: not a number") from None
-            if not math.isfinite(v):
-                raise MotionFileError(f"{path}:{i}: column {h}: not a finite number")
-            cols[h].append(v)
-    out = {h: np.asarray(v, float) for h, v in cols.items()}
-    t = out["time_s"]
-    if t.size == 0 or np.any(np.diff(t) <= 0):
-        raise MotionFileError(f"{path}: time_s must hold at least one time and increase strictly")
-    return out
+                raise f.refuse(f"{where}: not a number; give {_unit(h)}") from None
+            bad = motion_value_problem(h, v)
+            if bad is not None:
+                raise f.refuse(f"{where}: {bad}; give {_unit(h)}")
+            if j == it:
+                if previous is not None and not v > previous:
+                    raise f.refuse(f"{where}: time_s must increase strictly ({v:g} s follows "
+                                   f"{previous:g} s)")
+                previous = v
+            cols[j].append(v)
+    return np.column_stack([np.frombuffer(c, float) if len(c) else np.zeros(0) for c in cols]) \
+        if cols else np.zeros((0, 0))
+
+
+def _unit(column: str) -> str:
+    """What a column accepts, for messages (the bounds of the inline series)."""
+    if column not in MOTION_BOUNDS:
+        return "a finite time in seconds"
+    bound, unit = MOTION_BOUNDS[column]
+    return (f"degrees within ±{bound:g}" if unit == "°" else
+            f"metres within ±{bound:g} (positive up)")
 
 
 @dataclass(frozen=True)
@@ -109,7 +311,14 @@ class PlatformMotion:
 
     @classmethod
     def from_spec(cls, spec, resolve) -> "PlatformMotion":
-        """From a scene's ``sonar.motion``; ``resolve`` turns a path in the scene into a file."""
+        """From a scene's ``sonar.motion``; ``resolve`` turns a path in the scene into a file
+        (:meth:`~acoustics.scene.schema.Scene.resolve_path`).
+
+        Raises
+        ------
+        MotionFileError
+            A motion file the gate or the reader refuses (:func:`read_motion_csv`).
+        """
         z = np.zeros(1)
         if spec.kind == "swell":
             return cls(z, z, z, z, z, spec.swell)
@@ -118,7 +327,8 @@ class PlatformMotion:
             cols = {"time_s": s.time_s, "roll_deg": s.roll_deg, "pitch_deg": s.pitch_deg,
                     "yaw_deg": s.yaw_deg, "heave_m": s.heave_m}
         else:
-            cols = read_motion_csv(resolve(spec.file))
+            # the scene's folder (resolve(".")): the file must lie in it, as at the scene's load
+            cols = read_motion_csv(spec.file, folder=resolve("."))
         t = np.asarray(cols["time_s"], float)
 
         def col(name, scale=1.0):

@@ -10,16 +10,20 @@ refuses up front — with the estimate and the key to change — when either exc
              when set.
 
 Estimates are upper bounds by design (a refusal must not be a surprise, an acceptance must not
-end in an allocation error half-way); their terms are documented where they are computed.
+end in an allocation error half-way); their terms are documented where they are computed. An
+estimate names its *drivers* — the keys whose values the memory grows with (a population's
+count, a mesh's segments or file, the pings, a motion file's rows) and how much of it each
+accounts for — so that a refusal names the key that matters most and what of it fits.
 """
 from __future__ import annotations
 
+import math
 import os
 import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["ResourceError", "Estimate", "memory_limit_bytes", "check_resources", "fmt_bytes",
+__all__ = ["ResourceError", "Estimate", "Driver", "memory_limit_bytes", "check_resources", "fmt_bytes",
            "usable_cores"]
 
 GB = 1024 ** 3
@@ -39,6 +43,39 @@ def fmt_bytes(n: float) -> str:
     return f"{n:.0f} B"
 
 
+@dataclass(frozen=True)
+class Driver:
+    """A key the memory of an estimate grows with, in proportion.
+
+    Attributes
+    ----------
+    key : str
+        The key or option (``"targets.populations[0].count"``, ``"boundaries[1].mesh.segments"``).
+    amount : float
+        How much of it the estimate counts (targets, faces, pings, rows).
+    unit : str
+        What ``amount`` counts ("targets", "faces").
+    bytes : float
+        The memory it accounts for (in proportion to ``amount``).
+    """
+
+    key: str
+    amount: float
+    unit: str
+    bytes: float
+
+    def fitting(self, memory_bytes: float, limit_bytes: float) -> float:
+        """How much of it fits ``limit_bytes`` when the rest of ``memory_bytes`` stays."""
+        rest = memory_bytes - self.bytes
+        if self.bytes <= 0 or not math.isfinite(self.bytes) or rest >= limit_bytes:
+            return 0.0
+        return self.amount * (limit_bytes - rest) / self.bytes
+
+
+def _amount(x: float) -> str:
+    return f"{x:,.0f}" if x < 1e9 else f"{x:.3g}"
+
+
 @dataclass
 class Estimate:
     """What a command will need.
@@ -53,12 +90,37 @@ class Estimate:
         What makes up the memory (for the message), largest first.
     keys : str
         The scene keys or options that drive it (for the message).
+    drivers : list of Driver
+        The keys it grows with and their shares, for the message of a refusal.
     """
 
     memory_bytes: float = 0.0
     output_bytes: float = 0.0
     terms: list = field(default_factory=list)
     keys: str = ""
+    drivers: list = field(default_factory=list)
+
+    def largest_driver(self):
+        """The :class:`Driver` that accounts for the most memory (the first listed of those
+        within 1 % of it: the pings before the samples they hold), or None."""
+        drivers = [d for d in self.drivers if d.bytes > 0]
+        if not drivers:
+            return None
+        top = max(d.bytes for d in drivers)
+        return next(d for d in drivers if d.bytes >= 0.99 * top)
+
+    def what_fits(self, limit_bytes: float) -> str:
+        """For a refusal: the key that drives most of the memory and how much of it fits
+        ``limit_bytes`` (the rest unchanged), and what to reduce."""
+        d = self.largest_driver()
+        if d is None:
+            return f"reduce {self.keys or 'the input'}"
+        fit = d.fitting(self.memory_bytes, limit_bytes)
+        head = f"most of it is {d.key} ({_amount(d.amount)} {d.unit}, {fmt_bytes(d.bytes)})"
+        if fit >= 1:
+            return f"{head}: about {_amount(math.floor(fit))} {d.unit} fit; reduce it"
+        return (f"{head}, and without it the rest still exceeds the limit; reduce "
+                f"{self.keys or 'the input'}")
 
     def describe(self) -> str:
         parts = ", ".join(f"{name} {fmt_bytes(b)}" for name, b in
@@ -118,7 +180,7 @@ def check_resources(estimate: Estimate, *, what: str, output: Path | None = None
     if estimate.memory_bytes > limit:
         raise ResourceError(
             f"{what} would need {estimate.describe()}, over the memory limit of {fmt_bytes(limit)}: "
-            f"reduce {estimate.keys or 'the input'}, or raise the limit (--max-memory GB or "
+            f"{estimate.what_fits(limit)}, or raise the limit (--max-memory GB or "
             f"ABACUS_MAX_MEMORY_GB)")
     if output is not None and estimate.output_bytes > 0:
         folder = Path(output).parent
