@@ -63,7 +63,9 @@ class NoiseSettings(ConfigModel):
     azimuth: AngleRangeDeg(-90, 90) | None = Field(None, alias="azimuth_deg")
     """Region (source: region)."""
     file: str | None = None
-    """Noise-only dataset (source: noise_file), relative to the working directory."""
+    """Noise-only dataset (source: noise_file). In a run file: relative to the scene file's
+    folder and inside it (the file gate, processing/base/files.py); given with ``--settings`` or
+    from Python: relative to the working directory, and inside it."""
 
     @model_validator(mode="after")
     def _region(self):

@@ -31,10 +31,24 @@ def _version() -> str:
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse, with a bad option as one line (what is wrong and where help is), status 2."""
+    """argparse, with a bad option as one line (what is wrong and where help is), status 2; a
+    mistyped command or choice gets the closest accepted one ("did you mean 'run'?")."""
 
     def error(self, message):
-        self.exit(2, f"error: {self.prog}: {message} (see `{self.prog} --help`)\n")
+        self.exit(2, f"error: {self.prog}: {message}{_did_you_mean(message)} (see `{self.prog} --help`)\n")
+
+
+def _did_you_mean(message: str) -> str:
+    """"; did you mean 'X'?" for argparse's "invalid choice: 'Y' (choose from ...)" when an
+    accepted choice is close to Y (difflib), else ""."""
+    import difflib
+    import re
+    m = re.search(r"invalid choice: '((?:[^'\\]|\\.)*)' \(choose from (.*)\)", message)
+    if m is None:
+        return ""
+    choices = [c.strip().strip("'\"") for c in m.group(2).split(",")]
+    close = difflib.get_close_matches(m.group(1), [c for c in choices if c], n=1, cutoff=0.6)
+    return f"; did you mean '{close[0]}'?" if close else ""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -127,12 +141,21 @@ def _install_signal_handlers():
     import signal
     import threading
 
-    def watchdog(code, message):
-        timer = threading.Timer(5.0, _end_now, args=(code, message))
+    def watchdog(signum, code, message):
+        # the signal again, in the main thread: its handler ends the process by the signal's
+        # default action (128 + the signal); where the main thread runs no Python for another
+        # second (inside a compiled call), SIGKILL from here
+        def expire():
+            main = threading.main_thread()
+            if main.is_alive():
+                signal.pthread_kill(main.ident, signum)
+                main.join(1.0)
+            _end_now(code, message)
+        timer = threading.Timer(5.0, expire)
         timer.daemon = True
         timer.start()
 
-    state = {"seen": False}
+    state = {"seen": False, "held": False}
 
     def handler(signum, frame):
         if _SWALLOWED.get(signum):     # the interrupt a finaliser swallowed, delivered again
@@ -141,11 +164,22 @@ def _install_signal_handlers():
             del _SWALLOWED[signum]
             raise KeyboardInterrupt if signum == signal.SIGINT else _Terminated()
         code = EXIT_INTERRUPTED if signum == signal.SIGINT else EXIT_TERMINATED
+        word = "interrupted" if signum == signal.SIGINT else "terminated"
+        atomic = sys.modules.get("processing.base.atomic")
+        if state["held"] and not (atomic is not None and atomic.holding_interrupts()):
+            state["held"] = False       # the held signal, raised again as the library write ended
+            raise KeyboardInterrupt if signum == signal.SIGINT else _Terminated()
         if state["seen"]:
-            _end_now(code, "interrupted")
+            _end_now(code, word)
         state["seen"] = True
-        _RECEIVED.append((code, "interrupted" if signum == signal.SIGINT else "terminated"))
-        watchdog(code, "interrupted")
+        _RECEIVED.append((code, word))
+        watchdog(signum, code, word)
+        if atomic is not None and atomic.holding_interrupts():
+            # inside a library write that an exception would leave stuck on its own locks:
+            # raised when the write ends (processing.base.atomic.interrupts_held)
+            state["held"] = True
+            atomic.hold_signal(signum)
+            return
         raise KeyboardInterrupt if signum == signal.SIGINT else _Terminated()
 
     if threading.current_thread() is threading.main_thread():
@@ -243,7 +277,8 @@ def _command(argv) -> int:
                           ("processing.detection.noise", "NoiseEstimateError"),
                           ("abacus.cli.common", "UsageError"),
                           ("abacus.experiment", "ExperimentError"),
-                          ("acoustics.paths.meshes", "MeshError"))
+                          ("acoustics.paths.meshes", "MeshError"),
+                          ("processing.base.files", "FileRefused"))
         warnings.showwarning = _show_warning
         try:
             from abacus.cli.extras import check_extras
@@ -265,8 +300,13 @@ def _command(argv) -> int:
         except BrokenPipeError:
             raise
         except OSError as exc:   # the machine refused: disk full, permission, read-only
+            cause = _signal_cause(exc) or (_RECEIVED[0] if _RECEIVED else None)
+            if cause is not None:   # an interrupt that surfaced as an OSError: still a signal
+                _clean_up(cause[1])
+                return cause[0]
             what = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
-            print(f"error: {exc.strerror or exc.__class__.__name__}{what}: nothing was left "
+            reason = exc.strerror or (str(exc).splitlines()[0][:200] if str(exc).strip() else "")
+            print(f"error: {reason or 'the machine refused a write'}{what}: nothing was left "
                   f"half-written", file=sys.stderr)
             return EXIT_IO
         except MemoryError:
