@@ -39,6 +39,7 @@ name: probe
 sampling: {samples: 1024, time_offset_s: 0.017}
 processing:
   image: {range_m: [13.0, 20.0], n_beams: 16, interpolation: 2}
+  detect: {method: fraction_of_peak, fraction: 0.2}
 targets:
   points:
     - {range_m: 17.0, azimuth_deg: 1.0, elevation_deg: 0.1}
@@ -52,7 +53,7 @@ class Probe:
     name: str
     argv: list
     files: dict = field(default_factory=dict)     # relative path -> str | bytes | callable(path)
-    expect: str = "refuse"                        # "refuse" | "ok"
+    expect: str = "refuse"                        # "refuse" | "ok" | "any" (a correct result or a refusal)
     status: int | None = None                     # the exit status it must end with, if fixed
     timeout: float = 60.0
     env: dict = field(default_factory=dict)
@@ -63,6 +64,8 @@ class Probe:
     setup: object = None                          # callable(folder) run before the probe
     tmpfs_mb: float | None = None                 # run in a size-limited tmpfs (a full disk)
     readonly: bool = False                        # ... mounted read-only
+    says: tuple = ()                              # words the refusal must contain (file, key, option)
+    check: object = None                          # callable(folder, stdout) -> problem or None (controls)
 
 
 @dataclass
@@ -75,8 +78,36 @@ class Result:
 
 
 # ------------------------------------------------------------------ the probes
+def _merged(base, extra):
+    """``extra`` over ``base``: mappings merged key by key, anything else replaced."""
+    if isinstance(base, dict) and isinstance(extra, dict):
+        out = dict(base)
+        for k, v in extra.items():
+            out[k] = _merged(base[k], v) if k in base else v
+        return out
+    return extra
+
+
 def scene(extra: str = "", base: str = BASE) -> str:
-    return base + textwrap.dedent(extra)
+    """The base scene with ``extra`` (YAML) merged into it: a section the base has already
+    (``sampling``, ``targets``, ``processing``) is merged key by key — appending the text would
+    write the key twice, and the probe would be refused for that instead of what it names.
+    Text that is not a YAML mapping is appended as it is (probes of malformed YAML)."""
+    import re
+
+    import yaml
+    extra = textwrap.dedent(extra)
+    shared = set(re.findall(r"^(\w+):", base, re.M)) & set(re.findall(r"^(\w+):", extra, re.M))
+    if not shared:     # nothing written twice: the text as the probe wrote it (YAML 1.2 numbers)
+        return base + extra
+    try:
+        more = yaml.safe_load(extra) if extra.strip() else {}
+        data = yaml.safe_load(base)
+    except yaml.YAMLError:
+        return base + extra
+    if not isinstance(more, dict) or not isinstance(data, dict):
+        return base + extra
+    return yaml.safe_dump(_merged(data, more), sort_keys=False)
 
 
 _HDF5 = __import__("threading").Lock()   # HDF5 is not thread-safe: one dataset made at a time
@@ -489,7 +520,183 @@ def probes() -> list[Probe]:
         files={"s.yaml": laughs}, limits={"RLIMIT_AS": 1 << 30})
     add("resources", "count with a 100 MB memory limit", ["count", "d.nc", "--max-memory", "0.0001"],
         files={"d.nc": _dataset("good")}, status=3)
+    _issue27_probes(add)
     return P
+
+
+#: a motion file the scene reads (sonar.motion.kind: file)
+MOTION = "sonar: {motion: {kind: file, file: m.csv}}\npings: {interval_s: 0.5}\n"
+GOOD_MOTION = "time_s,roll_deg,pitch_deg,heave_m\n0,0,0,0\n1,2,1,0.2\n2,0,-1,0\n"
+#: a swell over the probe's targets (surface at z = 0, the sonar at 5 m depth)
+SWELL = """\
+sonar: {{pose: {{position_m: [0, 0, 5], boresight: [1, 0, 0], receiver_axis: [0, 1, 0]}}}}
+targets:
+  points:
+    - {{frame: world, position_m: [{x}, 0, {z}]}}
+boundaries:
+  - name: sea
+    role: surface
+    mesh: {{shape: swell, center_m: [15, 0], size_m: [40, 16], resolution_m: {res},
+            waves: [{{amplitude_m: {amp}, wavelength_m: {wl}}}]}}
+pings: {{count: {pings}, interval_s: 0.25}}
+effects: {{multipath_order: 1}}
+"""
+
+
+def _swell(x=17.0, z=2.0, amp=0.5, wl=25.0, res=0.5, pings=4):
+    return scene(SWELL.format(x=x, z=z, amp=amp, wl=wl, res=res, pings=pings))
+
+
+def _mat(kind: str):
+    """A writer of a small MATLAB recording (2 pings, 32 elements A/B), good or damaged one way."""
+    def make(path: Path):
+        import numpy as np
+        from scipy.io import savemat
+        rng = np.random.default_rng(1)
+        n_el, n_s, fs = 32, 512, 150e3
+        t = np.arange(200) / fs
+        fields = {
+            "samples": (rng.standard_normal((2, n_el, n_s)) + 1j * rng.standard_normal((2, n_el, n_s))),
+            "fs": fs, "f0": 420e3, "bandwidth": 30e3, "c": 1500.0,
+            "replica": np.exp(1j * np.pi * 30e3 / t[-1] * (t - t[-1] / 2) ** 2),
+            "element_xyz": np.column_stack([np.arange(n_el) * 0.003, np.zeros(n_el), np.zeros(n_el)]),
+            "element_subarray": np.array(["A"] * 16 + ["B"] * 16, dtype=object),
+            "tx_xyz": np.column_stack([np.zeros(16), np.arange(16) * 0.003, np.zeros(16)]),
+            "ping_time": np.array([0.0, 0.1]),
+        }
+        if kind == "nan_times":
+            fields["ping_time"] = np.array([0.0, np.nan])
+        elif kind == "decreasing_times":
+            fields["ping_time"] = np.array([0.1, 0.0])
+        elif kind == "sound_speed_1e12":
+            fields["c"] = 1e12
+        elif kind == "empty_replica":
+            fields["replica"] = np.zeros(0, complex)
+        elif kind == "subarrays_all_c":
+            fields["element_subarray"] = np.array(["C"] * n_el, dtype=object)
+        elif kind == "text_rate":
+            fields["fs"] = "fast"
+        elif kind == "char_row_subarray":
+            fields["element_subarray"] = "A" * 16 + "B" * 16
+        savemat(path, fields)
+    return make
+
+
+def _strict_json(folder: Path, out: str):
+    """None when the command printed strict JSON (no NaN or Infinity), else why not."""
+    import json
+
+    def refuse(token):
+        raise ValueError(f"{token} is not JSON")
+    try:
+        json.loads(out, parse_constant=refuse)
+    except ValueError as exc:
+        return f"stdout is not strict JSON ({exc})"
+    return None
+
+
+def _issue27_probes(add):
+    """Issue 27's classes: motion files, files out of bounds, size drivers, values the checks
+    must catch, geometry out of the water, convert, outputs, output sets."""
+    motion_scene = scene(MOTION)
+    # 1. motion files are user input
+    add("controls", "a good motion file", ["scene", "check", "s.yaml"],
+        files={"s.yaml": motion_scene, "m.csv": GOOD_MOTION}, expect="ok")
+    bad_motion = {
+        "no time_s column": "t,roll_deg\n0,1\n",
+        "NaN roll": "time_s,roll_deg\n0,0\n1,nan\n",
+        "time going back": "time_s,roll_deg\n0,0\n2,1\n1,0\n",
+        "empty file": "",
+        "header only": "time_s,roll_deg\n",
+        "semicolons": "time_s;roll_deg\n0;0\n1;1\n",
+        "ragged row": "time_s,roll_deg\n0,0\n1\n",
+        "binary bytes": b"\x00\xff\xfe\x01" * 64,
+        "heave 400 m": "time_s,heave_m\n0,0\n1,400\n",
+        "roll 500 degrees": "time_s,roll_deg\n0,0\n1,500\n",
+    }
+    for name, text in bad_motion.items():
+        add("motion_files", name, ["scene", "check", "s.yaml"],
+            files={"s.yaml": motion_scene, "m.csv": text}, says=("m.csv",))
+    add("motion_files", "missing file", ["simulate", "s.yaml", "-o", "s.nc"], files={"s.yaml": motion_scene},
+        says=("m.csv",))
+    add("motion_files", "a folder", ["scene", "check", "s.yaml"], files={"s.yaml": motion_scene},
+        setup=lambda f: (f / "m.csv").mkdir(), says=("m.csv",))
+    # 2. files that escape the scene's folder, or are not files
+    for name, target in [("../outside.csv", "../outside.csv"), ("an absolute system path", "/etc/passwd"),
+                         ("/dev/zero", "/dev/zero")]:
+        add("user_files", f"motion file {name}", ["scene", "check", "s.yaml"], timeout=30,
+            files={"s.yaml": scene(MOTION.replace("m.csv", target))}, says=("sonar.motion",))
+    add("user_files", "motion file a symlink out of the folder", ["scene", "check", "s.yaml"],
+        files={"s.yaml": motion_scene}, setup=lambda f: os.symlink("/etc/passwd", f / "m.csv"),
+        says=("m.csv",))
+    add("user_files", "motion file a FIFO", ["scene", "check", "s.yaml"], files={"s.yaml": motion_scene},
+        setup=lambda f: os.mkfifo(f / "m.csv"), timeout=20, says=("m.csv",))
+    add("user_files", "noise file an absolute system path", ["scene", "check", "s.yaml"],
+        files={"s.yaml": scene("processing: {detect: {noise: {source: noise_file, file: /etc/passwd}}}\n")},
+        says=("noise",))
+    # 3. size drivers the estimate must see before anything is allocated
+    add("size_drivers", "a school of 5 x 10^7 fish", ["scene", "check", "s.yaml"], status=3,
+        files={"s.yaml": scene("targets:\n  populations:\n    - {kind: school, center_m: [0, 0, 18], "
+                               "semi_axes_m: [2, 2, 2], count: 50000000}\n")})
+    add("size_drivers", "a plane of 10^12 facets", ["scene", "check", "s.yaml"], status=3,
+        files={"s.yaml": scene("boundaries:\n  - {name: f, role: floor, mesh: {shape: plane, center_m: [0, 0, 25], "
+                               "normal: [0, 0, 1], size_m: [40, 40], segments: [1000000, 1000000]}}\n")})
+    add("size_drivers", "a PLY header claiming 10^12 faces", ["scene", "check", "s.yaml"],
+        files={"s.yaml": scene("boundaries:\n  - {name: r, role: obstacle, mesh: {shape: file, file: m.ply}}\n"),
+               "m.ply": "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+                        "property float y\nproperty float z\nelement face 1000000000000\n"
+                        "property list uchar int vertex_indices\nend_header\n"})
+    add("size_drivers", "sv --range-bin 1e-9", ["sv", "d.nc", "--range-bin", "1e-9", "--csv", "m.csv"],
+        files={"d.nc": _dataset("good")}, says=("--range-bin",))
+    # 4. values a scene check must catch before a run fails on them
+    add("checked_values", "image range outside the record", ["scene", "check", "s.yaml"],
+        files={"s.yaml": scene("processing: {image: {range_m: [40.0, 60.0]}}\n")}, says=("range_m",))
+    add("checked_values", "swell resolution 1e-300 m", ["scene", "check", "s.yaml"],
+        files={"s.yaml": _swell(res=1e-300)}, says=("resolution_m",))
+    add("checked_values", "swell size 1e300 m", ["scene", "check", "s.yaml"],
+        files={"s.yaml": _swell().replace("size_m:\n", "size_m:\n").replace("[40, 16]", "[1.0e+300, 16]")})
+    add("checked_values", "a flat OBJ as a mesh target", ["simulate", "s.yaml", "-o", "s.nc"],
+        files={"s.yaml": scene("targets:\n  meshes:\n    - {name: plate, frame: sonar, mesh: {shape: file, "
+                               "file: m.obj, transform: {translate_m: [0, 0, 17]}}}\n"),
+               "m.obj": "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0.1 0.1 0\nf 1 2 3\nf 2 4 3\n"}, expect="any",
+        keep=("s.nc",))
+    # 5. out of the water
+    add("controls", "a target under a swell", ["scene", "check", "s.yaml"], files={"s.yaml": _swell()},
+        expect="ok")
+    add("out_of_water", "a target in the swell's crests", ["scene", "check", "s.yaml"],
+        files={"s.yaml": _swell(z=-0.2)}, says=("targets",))
+    add("out_of_water", "the sonar above the surface", ["scene", "check", "s.yaml"],
+        files={"s.yaml": _swell().replace("position_m: [0, 0, 5]", "position_m: [0, 0, -1]")}, says=("sonar",))
+    add("out_of_water", "swell amplitude 1e6 m", ["scene", "check", "s.yaml"],
+        files={"s.yaml": _swell(amp=1e6)}, says=("amplitude_m",))
+    add("out_of_water", "swell wavelength 1e-300 m", ["scene", "check", "s.yaml"],
+        files={"s.yaml": _swell(wl=1e-300)}, says=("wavelength_m",))
+    # 6. convert writes only what processing can use
+    add("controls", "convert a good .mat", ["convert", "r.mat", "r.nc"], files={"r.mat": _mat("good")},
+        expect="ok", keep=("r.nc",))
+    add("controls", "convert a .mat with MATLAB's char-row subarrays", ["convert", "r.mat", "r.nc"],
+        files={"r.mat": _mat("char_row_subarray")}, expect="ok", keep=("r.nc",))
+    for kind, word in [("nan_times", "ping_time"), ("decreasing_times", "ping_time"),
+                       ("sound_speed_1e12", "c"), ("empty_replica", "replica"),
+                       ("subarrays_all_c", "element_subarray"), ("text_rate", "fs")]:
+        add("convert", kind.replace("_", " "), ["convert", "r.mat", "r.nc"], files={"r.mat": _mat(kind)},
+            says=(word,))
+    add("convert", "a FIFO as input", ["convert", "r.mat", "r.nc"], setup=lambda f: os.mkfifo(f / "r.mat"),
+        timeout=20)
+    # 7. outputs a program reads
+    add("outputs", "track --json of one ping is strict JSON", ["track", "d.nc", "--json"],
+        files={"d.nc": _dataset("good")}, expect="ok", check=_strict_json)
+    add("outputs", "sv of a layer outside the image", ["sv", "d.nc", "--layer", "40:45", "--json"],
+        files={"d.nc": _dataset("good")}, says=("--layer",))
+    # 8. sets of outputs: all or nothing
+    add("output_sets", "count -o, --csv, then an existing --targets-csv",
+        ["count", "d.nc", "-o", "c.nc", "--csv", "c.csv", "--targets-csv", "t.csv"],
+        files={"d.nc": _dataset("good"), "t.csv": "keep me"}, says=("t.csv",))
+    add("output_sets", "--overwrite onto the input itself", ["count", "d.nc", "-o", "d.nc", "--overwrite"],
+        files={"d.nc": _dataset("good")}, says=("d.nc",))
+    add("output_sets", "experiment with an unreachable scheduler",
+        ["experiment", "s.yaml", "-o", "exp", "--pings", "2", "--scheduler", "tcp://127.0.0.1:9"],
+        files={"s.yaml": BASE}, timeout=90, says=("scheduler",))
 
 
 def _flip_byte(exp: Path):
@@ -601,15 +808,23 @@ def run_probe(probe: Probe) -> Result:
             return Result(probe, "refused control", f"exit {rc}", err, seconds)
         if probe.expect == "refuse" and rc == 0 and not probe.interrupt:
             return Result(probe, "silent", "accepted (exit 0)", err, seconds)
-        if probe.expect == "refuse" and len(lines) > 3:
+        refused = probe.expect == "refuse" or (probe.expect == "any" and rc != 0)
+        if refused and len(lines) > 3:
             return Result(probe, "unclear", f"{len(lines)} lines on stderr", err, seconds)
+        missing = [w for w in probe.says if w.lower() not in err.lower()]
+        if refused and rc != 0 and missing:
+            return Result(probe, "vague", f"the message does not name {', '.join(missing)}", err, seconds)
+        if probe.expect == "ok" and probe.check is not None:
+            problem = probe.check(folder, out)
+            if problem:
+                return Result(probe, "wrong result", problem, err, seconds)
         # SIGKILL cannot be cleaned up after: its temporaries are the next run's to remove
         killed = probe.interrupt is not None and probe.interrupt[0] == signal.SIGKILL
         if temps and not killed:
             return Result(probe, "partial output", f"temporaries left: {temps[:3]}", err, seconds)
         if killed:
             new = [p for p in new if ".tmp-" not in p and ".old-" not in p]
-        if probe.expect == "refuse" and new and not (probe.interrupt and rc == 0):
+        if refused and new and not (probe.interrupt and rc == 0):
             return Result(probe, "partial output", f"left {new[:3]}", err, seconds)
         if probe.then:
             r = subprocess.run(ABACUS + probe.then, cwd=folder, env=_env(probe.env), capture_output=True,
@@ -679,7 +894,8 @@ def run_probes(todo, *, workers: int = 2) -> list[Result]:
 def report(results) -> str:
     classes = list(dict.fromkeys(r.probe.cls for r in results))
     verdicts = ["traceback", "hang", "partial output", "silent", "leak", "outside", "wrong exit",
-                "unclear", "slow interrupt", "refused control", "not resumable", "harness error"]
+                "unclear", "vague", "wrong result", "slow interrupt", "refused control", "not resumable",
+                "harness error"]
     rows = []
     for c in classes:
         rs = [r for r in results if r.probe.cls == c]

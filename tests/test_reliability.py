@@ -44,3 +44,7 @@ def test_there_are_at_least_150_probes_in_every_class_we_promised():
     assert len(reliability.probes()) >= 150
     assert {"yaml_bombs", "impossible_sizes", "impossible_physics", "paths", "interrupts",
             "resources", "experiment_state", "output_collisions", "bad_datasets"} <= classes
+    # issue 27's classes: motion files, files out of bounds, size drivers, values the scene check
+    # must catch, the moving sea, convert, outputs a program reads, sets of outputs
+    assert {"motion_files", "user_files", "size_drivers", "checked_values", "out_of_water", "convert",
+            "outputs", "output_sets"} <= classes
