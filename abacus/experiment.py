@@ -338,7 +338,14 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
     points = experiment_plan(scene, sweep)
     man = _manifest(points, sweep)
     _check_folder(out, man, restart)
-    _start_folder(out, man, restart)
+    # the scheduler is reached before the folder is made: one that does not answer leaves nothing
+    client = _connect(scheduler) if scheduler else None
+    try:
+        _start_folder(out, man, restart)
+    except BaseException:
+        if client is not None:
+            client.close()
+        raise
     parts = out / PARTS
     tasks = _tasks(points, pings, sweep)
     from abacus.results import part_state
@@ -355,7 +362,7 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
     done = len(tasks) - len(todo)
     if progress:
         progress(done, len(tasks))
-    for res in _execute(payloads, n_workers, scheduler, threads):
+    for res in _execute(payloads, n_workers, scheduler, threads, client=client):
         save_part(parts, res, experiment=man["experiment"])
         done += 1
         if progress:
@@ -426,9 +433,38 @@ def plan_workers(workers: int | None, scheduler: str | None = None):
     return workers, max(1, cores // workers)
 
 
-def _execute(payloads, n_workers, scheduler, threads=1):
-    """Yield task results as they finish (in-process, a local cluster, or a scheduler)."""
+#: seconds to wait for a Dask scheduler given by --scheduler to answer
+SCHEDULER_TIMEOUT_S = 10.0
+
+
+def _connect(scheduler: str):
+    """A Dask client of the scheduler at ``scheduler``, or one line saying it did not answer.
+
+    Raises
+    ------
+    ExperimentError
+        No scheduler answered at that address within :data:`SCHEDULER_TIMEOUT_S` (or the
+        address is not one), with nothing written.
+    """
+    import logging
+
+    from dask.distributed import Client
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)
+    try:
+        return Client(scheduler, timeout=SCHEDULER_TIMEOUT_S)
+    except (OSError, ValueError, TypeError, TimeoutError) as exc:
+        text = str(exc).splitlines()[0][:160] if str(exc).strip() else exc.__class__.__name__
+        raise ExperimentError(f"--scheduler {scheduler}: no Dask scheduler answered there ({text}); "
+                              f"nothing was written: start the scheduler (dask scheduler) or give its "
+                              f"address as tcp://HOST:PORT") from None
+
+
+def _execute(payloads, n_workers, scheduler, threads=1, client=None):
+    """Yield task results as they finish (in-process, a local cluster, or a scheduler; ``client``
+    a client already connected to it)."""
     if not payloads:
+        if client is not None:
+            client.close()
         return
     if not scheduler and n_workers == 0:
         for p in payloads:
@@ -440,7 +476,7 @@ def _execute(payloads, n_workers, scheduler, threads=1):
     logging.getLogger("distributed").setLevel(logging.ERROR)
     cluster = None
     if scheduler:
-        client = Client(scheduler)
+        client = client if client is not None else _connect(scheduler)
     else:
         # one task at a time per worker; its kernels, FFTs and BLAS use the worker's share of
         # the cores and no more (oversubscribed threads were 2–12x slower on small pings)

@@ -232,6 +232,16 @@ def _unraisable_ends_an_interrupt(default_hook):
     return hook
 
 
+def _ended_by_signal(exc):
+    """When a signal has been received (or caused ``exc``): temporaries removed, its word
+    printed, its exit status returned (the error it surfaced as is not the story). Else None."""
+    cause = _signal_cause(exc) or (_RECEIVED[0] if _RECEIVED else None)
+    if cause is None:
+        return None
+    _clean_up(cause[1])
+    return cause[0]
+
+
 def _signal_cause(exc):
     """(exit status, word) when ``exc`` was caused by an interrupt or termination, else None."""
     seen = set()
@@ -285,9 +295,15 @@ def _command(argv) -> int:
             check_extras(args)       # the extras the arguments call for, before any work
             return int(args.func(args) or 0)
         except loaded(("processing.base.resources", "ResourceError")) as exc:
+            if (code := _ended_by_signal(exc)) is not None:
+                return code
             print(f"error: {exc}", file=sys.stderr)
             return EXIT_RESOURCES
         except user_errors() as exc:
+            # a reader that turns any exception into "damaged or truncated (...)" also turns an
+            # interrupt landing inside a library into one: still the interrupt
+            if (code := _ended_by_signal(exc)) is not None:
+                return code
             print(f"error: {exc}", file=sys.stderr)
             return EXIT_USAGE
         except ImportError as exc:   # an optional extra not installed: one line naming it
@@ -300,10 +316,8 @@ def _command(argv) -> int:
         except BrokenPipeError:
             raise
         except OSError as exc:   # the machine refused: disk full, permission, read-only
-            cause = _signal_cause(exc) or (_RECEIVED[0] if _RECEIVED else None)
-            if cause is not None:   # an interrupt that surfaced as an OSError: still a signal
-                _clean_up(cause[1])
-                return cause[0]
+            if (code := _ended_by_signal(exc)) is not None:   # an interrupt surfaced as an OSError
+                return code
             what = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
             reason = exc.strerror or (str(exc).splitlines()[0][:200] if str(exc).strip() else "")
             print(f"error: {reason or 'the machine refused a write'}{what}: nothing was left "

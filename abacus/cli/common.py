@@ -6,7 +6,8 @@ import sys
 from pathlib import Path
 
 __all__ = ["UsageError", "load", "ping_list", "Progress", "default_scene_path", "check_output",
-           "add_output_options", "check_scene_resources", "prefetch"]
+           "check_outputs", "add_output_options", "check_scene_resources", "prefetch", "tree_bytes",
+           "check_room", "save_tree"]
 
 
 #: drawing the figures of ``abacus run`` (matplotlib canvases, fonts; measured ≈ 150 MB)
@@ -85,9 +86,32 @@ def add_output_options(parser, *, overwrite: bool = True, memory: bool = True):
                                  "half the machine's memory); larger runs are refused up front")
 
 
-def check_output(path, *, overwrite: bool, option: str = "-o", folder: bool = False) -> Path:
-    """The output path of a command, checked before any work: its folder exists, it is not an
-    input's twin, and it is replaced only with ``--overwrite``.
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether two paths name the same file or folder (links and hard links followed)."""
+    try:
+        if a.exists() and b.exists():
+            return os.path.samefile(a, b)
+    except OSError:
+        pass
+    try:
+        return a.resolve() == b.resolve()
+    except (OSError, RuntimeError):
+        return False
+
+
+def _inside(a: Path, folder: Path) -> bool:
+    """Whether ``a`` lies inside ``folder`` (links followed)."""
+    try:
+        return a.resolve().is_relative_to(folder.resolve()) and a.resolve() != folder.resolve()
+    except (OSError, RuntimeError):
+        return False
+
+
+def check_output(path, *, overwrite: bool, option: str = "-o", folder: bool = False,
+                 inputs=()) -> Path:
+    """The output path of a command, checked before any work: its folder exists, it is not one
+    of the command's ``inputs`` (nor a folder holding one) — refused even with ``--overwrite``,
+    which replaces outputs, never inputs —, and it is replaced only with ``--overwrite``.
 
     Raises
     ------
@@ -96,6 +120,16 @@ def check_output(path, *, overwrite: bool, option: str = "-o", folder: bool = Fa
     p = Path(path)
     if str(path).strip() == "":
         raise UsageError(f"{option}: give a file name")
+    for given in inputs:
+        if given is None or str(given).strip() == "":
+            continue
+        src = Path(given)
+        if _same_file(p, src):
+            raise UsageError(f"{option} {p}: is the input {given}; write to another name (an input is "
+                             f"never replaced, even with --overwrite)")
+        if (p.is_dir() or folder or p.suffix == ".zarr") and _inside(src, p):
+            raise UsageError(f"{option} {p}: holds the input {given}; write to another folder (an input is "
+                             f"never replaced, even with --overwrite)")
     parent = p.parent
     if not parent.exists():
         raise UsageError(f"{option} {p}: the folder {parent} does not exist (create it first)")
@@ -111,6 +145,65 @@ def check_output(path, *, overwrite: bool, option: str = "-o", folder: bool = Fa
     if not os.access(parent, os.W_OK):
         raise UsageError(f"{option} {p}: the folder {parent} is not writable")
     return p
+
+
+def check_outputs(args, options, *, inputs=()) -> list:
+    """Every output option of a command checked (:func:`check_output`) and told apart: two
+    options naming the same file, or one inside another's folder, are refused.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        With ``overwrite``.
+    options : list of (option, value, folder)
+        ``("-o", args.output, False)``, ``("--plots", args.plots, True)``; a value None is an
+        output not asked for.
+    inputs : paths
+        The command's inputs (its dataset, settings file), never replaced.
+
+    Returns
+    -------
+    list of Path or None
+        One per option, in order.
+    """
+    out, seen = [], []
+    for option, value, folder in options:
+        if value is None:
+            out.append(None)
+            continue
+        p = check_output(value, overwrite=args.overwrite, option=option, folder=folder, inputs=inputs)
+        for other, q, q_folder in seen:
+            if _same_file(p, q) or (q_folder and _inside(p, q)) or (folder and _inside(q, p)):
+                raise UsageError(f"{option} {p}: also given to {other}; give each output its own name")
+        seen.append((option, p, folder))
+        out.append(p)
+    return out
+
+
+def tree_bytes(tree) -> float:
+    """The bytes of a dataset's variables (what a NetCDF4/Zarr file of it holds, uncompressed)."""
+    return float(sum(v.nbytes for node in tree.subtree for v in node.ds.variables.values()))
+
+
+def check_room(n_bytes: float, path, *, what: str):
+    """Refuse (exit 3) an output of ≈ ``n_bytes`` that the free space of its folder cannot
+    hold (or over ``ABACUS_MAX_OUTPUT_GB``), before anything is written."""
+    from processing.base.resources import Estimate, check_resources
+    check_resources(Estimate(0.0, float(n_bytes), [], keys="the pings in the input (process it in parts)"),
+                    what=what, output=Path(path))
+
+
+def save_tree(tree, path, *, final=None, fmt=None):
+    """Write a dataset (:func:`processing.base.dataset.write_tree`) after checking the free
+    space (:func:`check_room`), its library write held from interrupts
+    (:func:`processing.base.atomic.interrupts_held`: an interrupt is raised when it ends).
+
+    ``path`` is where to write (a staged temporary), ``final`` the name it will have."""
+    from processing.base.atomic import interrupts_held
+    from processing.base.dataset import write_tree
+    check_room(tree_bytes(tree), final or path, what=str(final or path))
+    with interrupts_held():
+        write_tree(tree, path, fmt=fmt)
 
 
 def check_scene_resources(scene, args, *, pings=None, images="none", process=True, output=None,

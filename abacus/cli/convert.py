@@ -2,7 +2,7 @@
 .mat recordings of per-element samples)."""
 from __future__ import annotations
 
-from abacus.cli.common import UsageError, add_output_options, check_output
+from abacus.cli.common import UsageError, add_output_options, check_output, save_tree
 
 HELP = "convert the previous abacus layout or a MATLAB .mat recording to SONAR-netCDF4"
 
@@ -18,22 +18,29 @@ def add_parser(sub):
 def command(args) -> int:
     from pathlib import Path
 
+    from processing.base.atomic import staged_set
     from processing.base.convert import from_legacy, read_mat
-    from processing.base.dataset import open_tree, write_tree
+    from processing.base.dataset import open_tree
+    from processing.base.files import FileRefused, check_file
     src = Path(args.input)
-    out = check_output(args.output, overwrite=args.overwrite)
-    if not src.exists():
-        raise UsageError(f"{src}: no such file or folder")
-    if src.suffix.lower() == ".mat":
-        tree = read_mat(src)
-    elif src.suffix.lower() in (".nc", ".zarr", ".h5", ".nc4"):
-        tree = from_legacy(open_tree(src, max_memory_gb=args.max_memory, work_factor=2.0).load(),
-                           source=str(src))
-    else:
+    out = check_output(args.output, overwrite=args.overwrite, inputs=[args.input])
+    suffix = src.suffix.lower()
+    if suffix not in (".mat", ".nc", ".zarr", ".h5", ".nc4"):
         raise UsageError(f"{src}: accepted inputs are .mat (MATLAB v5/v7) and .nc/.zarr datasets in "
                          f"the previous abacus layout")
+    try:   # a regular file (or a Zarr folder), before anything opens it: a FIFO would hang
+        check_file(src, max_bytes=None, what="input", accepts="a .mat file or a .nc/.zarr dataset",
+                   allow_folder=suffix == ".zarr")
+    except FileRefused as exc:
+        raise UsageError(str(exc)) from None
+    if suffix == ".mat":
+        tree = read_mat(src, max_memory_gb=args.max_memory)
+    else:
+        tree = from_legacy(open_tree(src, max_memory_gb=args.max_memory, work_factor=2.0),
+                           source=str(src))
     n = tree["Sonar/Beam_group1"].ds.sizes
-    write_tree(tree, out)
+    with staged_set() as outputs:
+        save_tree(tree, outputs.path(out), final=out)
     print(f"wrote {out}: {n['ping_time']} ping(s), {n['beam']} element(s), {n['range_sample']} samples "
           f"per ping (SONAR-netCDF4 1.0)")
     return 0

@@ -1,9 +1,7 @@
 """``abacus count``: detect, locate and count the targets of a dataset."""
 from __future__ import annotations
 
-import json
-
-from abacus.cli.common import add_output_options, check_output
+from abacus.cli.common import add_output_options, check_outputs, save_tree
 
 HELP = "detect, locate and count targets in a dataset"
 
@@ -24,30 +22,34 @@ def add_parser(sub):
 
 def command(args) -> int:
     import processing
-    from processing.base.dataset import open_tree, write_tree
-    out = check_output(args.output, overwrite=args.overwrite) if args.output else None
-    csv = check_output(args.csv, overwrite=args.overwrite, option="--csv") if args.csv else None
-    tcsv = (check_output(args.targets_csv, overwrite=args.overwrite, option="--targets-csv")
-            if args.targets_csv else None)
-    plots = check_output(args.plots, overwrite=args.overwrite, option="--plots", folder=True) if args.plots else None
+    from processing.base.atomic import staged_set
+    from processing.base.dataset import open_tree
+    out, csv, tcsv, plots = check_outputs(
+        args, [("-o", args.output, False), ("--csv", args.csv, False),
+               ("--targets-csv", args.targets_csv, False), ("--plots", args.plots, True)],
+        inputs=[args.input, args.settings])
     tree = processing.count(open_tree(args.input, max_memory_gb=args.max_memory, work_factor=3.0),
                             args.settings)
     result = processing.count_summary(tree)
-    if out is not None:
-        write_tree(tree, out)
-    if csv is not None:
-        processing.write_csv(tree, csv)
-    if tcsv is not None:
-        from processing.backscatter.target_table import write_single_targets_csv
-        write_single_targets_csv(tree, tcsv, args.settings)
-    if plots is not None:
-        from processing.base.atomic import staged
-        from abacus.figures.plots import count_figures
-        n = tree["Processing/Counts"].sizes["ping_time"]
-        with staged(plots) as tmp:
+    # every output to a temporary, all renamed into place at the end: an error, a full disk
+    # or an interrupt part-way leaves none of them
+    with staged_set() as outputs:
+        if out is not None:
+            save_tree(tree, outputs.path(out), final=out)
+        if csv is not None:
+            processing.write_csv(tree, outputs.path(csv))
+        if tcsv is not None:
+            from processing.backscatter.target_table import write_single_targets_csv
+            write_single_targets_csv(tree, outputs.path(tcsv), args.settings)
+        if plots is not None:
+            from abacus.figures.plots import count_figures
+            n = tree["Processing/Counts"].sizes["ping_time"]
+            tmp = outputs.path(plots)
+            tmp.mkdir()
             count_figures(tree, tmp, pings=range(min(n, 5)))
     if args.json:
-        print(json.dumps(result))
+        from processing.tracking.tracks import strict_json
+        print(strict_json(result))
     else:
         print(processing.format_counts(result))
         for what, where in (("dataset", args.output), ("detections CSV", args.csv),

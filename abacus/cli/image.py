@@ -1,7 +1,7 @@
 """``abacus image``: pulse compression, beamforming and interferometry of a dataset."""
 from __future__ import annotations
 
-from abacus.cli.common import UsageError, add_output_options, check_output
+from abacus.cli.common import UsageError, add_output_options, check_outputs, save_tree
 
 HELP = "pulse compression, beamforming, interferometry of a dataset"
 
@@ -21,25 +21,29 @@ def add_parser(sub):
 
 def command(args) -> int:
     import processing
-    from processing.base.dataset import open_tree, tree_pings, write_tree
+    from processing.base.atomic import staged_set
+    from processing.base.dataset import open_tree, tree_pings
     if not args.output and not args.plots:
         raise UsageError("abacus image: give -o OUT and/or --plots DIR")
-    out = check_output(args.output, overwrite=args.overwrite) if args.output else None
-    plots = (check_output(args.plots, overwrite=args.overwrite, option="--plots", folder=True)
-             if args.plots else None)
+    out, plots = check_outputs(args, [("-o", args.output, False), ("--plots", args.plots, True)],
+                               inputs=[args.input, args.settings])
     tree = open_tree(args.input, max_memory_gb=args.max_memory, work_factor=6.0)
     n = tree_pings(tree)
     if not 0 <= args.ping < max(n, 1):
         raise UsageError(f"--ping {args.ping}: the dataset has pings 0..{n - 1} (indices in the file)")
     out_tree = processing.image(tree, args.settings, storage=args.images)
+    # both outputs to temporaries, renamed into place together at the end
+    with staged_set() as outputs:
+        if out is not None:
+            save_tree(out_tree, outputs.path(out), final=out)
+        if plots is not None:
+            from abacus.figures.plots import image_figures
+            from processing.records import figure_images
+            tmp = outputs.path(plots)
+            tmp.mkdir()
+            image_figures(figure_images(out_tree, [args.ping]), tmp, ping=args.ping)
     if out is not None:
-        write_tree(out_tree, out)
         print(f"wrote {out}")
     if plots is not None:
-        from processing.base.atomic import staged
-        from abacus.figures.plots import image_figures
-        from processing.records import figure_images
-        with staged(plots) as tmp:
-            image_figures(figure_images(out_tree, [args.ping]), tmp, ping=args.ping)
         print(f"wrote figures into {plots}/")
     return 0

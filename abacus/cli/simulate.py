@@ -5,7 +5,7 @@ import sys
 from pathlib import Path
 
 from abacus.cli.common import (Progress, UsageError, add_output_options, check_output,
-                                  check_scene_resources, load, ping_list)
+                                  check_scene_resources, load, ping_list, save_tree)
 from acoustics.seeds import SEED_MAX
 
 HELP = "simulate a scene's per-element echoes into a dataset"
@@ -24,9 +24,11 @@ def add_parser(sub):
 
 def command(args) -> int:
     from acoustics.simulation.run import simulate
-    from processing.base.dataset import ELEMENT_GROUP, write_tree
+    from processing.base.atomic import staged_set
+    from processing.base.dataset import ELEMENT_GROUP
     scene = load(args.scene)
-    out = check_output(args.output, overwrite=args.overwrite)
+    out = check_output(args.output, overwrite=args.overwrite,
+                       inputs=[args.scene] if Path(args.scene).exists() else [])
     fmt = args.format or ("zarr" if out.suffix == ".zarr" else "netcdf")
     if args.seed is not None and not 0 <= args.seed <= SEED_MAX:
         raise UsageError(f"--seed must be an integer in [0, {SEED_MAX}], got {args.seed}")
@@ -34,7 +36,8 @@ def command(args) -> int:
     check_scene_resources(scene, args, pings=len(pings) if pings else None, process=False, output=out)
     tree = simulate(scene, pings=pings, seed=args.seed,
                     progress=Progress("simulate"))
-    write_tree(tree, out, fmt=fmt)
+    with staged_set() as outputs:
+        save_tree(tree, outputs.path(out), final=out, fmt=fmt)
     prov = tree["Provenance"].ds
     n_p = tree[ELEMENT_GROUP].sizes["ping_time"]
     print(f"wrote {out} ({fmt}): {n_p} ping(s); stages: "

@@ -1,9 +1,9 @@
 """``abacus sv``: calibrated volume backscattering — MVBS grid, NASC of layers, CSV exports."""
 from __future__ import annotations
 
-import json
+import math
 
-from abacus.cli.common import UsageError, add_output_options, check_output
+from abacus.cli.common import UsageError, add_output_options, check_outputs, save_tree
 
 HELP = "volume backscattering: Sv gridded means (MVBS) and NASC of range layers"
 
@@ -33,25 +33,56 @@ def _layers(texts):
             a, b = (float(x) for x in t.split(":"))
         except ValueError:
             raise UsageError(f"--layer {t!r}: expected START:STOP in metres, e.g. 15:20") from None
-        if not b > a >= 0:
-            raise UsageError(f"--layer {t!r}: STOP must exceed START, both ≥ 0 m")
+        if not (math.isfinite(a) and math.isfinite(b) and b > a >= 0):
+            raise UsageError(f"--layer {t!r}: STOP must exceed START, both finite and ≥ 0 m")
         out.append((a, b))
     return out
+
+
+def _check_grid_bound(tree, args) -> None:
+    """Refuse a range bin that makes the MVBS grid too large before imaging: a lower bound of
+    its memory (one beam, the record's whole range) against the limit; the exact check, with the
+    image's beams and range, follows in processing.backscatter.sv."""
+    from processing.base.dataset import ELEMENT_GROUP, ENVIRONMENT_GROUP, group_of
+    from processing.base.resources import Estimate, check_resources
+    eg, env = group_of(tree, ELEMENT_GROUP), group_of(tree, ENVIRONMENT_GROUP)
+    try:
+        n_s = int(eg.sizes["range_sample"])
+        n_p = int(eg.sizes["ping_time"])
+        dt = float(eg["sample_interval"].values.ravel()[0])
+        c = float(env["sound_speed_indicative"].values)
+    except (AttributeError, KeyError, IndexError, TypeError, ValueError):
+        return                                   # the reader names what is missing
+    span = n_s * dt * c / 2
+    if not (span > 0 and span < 1e9):
+        return
+    n_bins = span / args.range_bin + 1
+    grid = -(-n_p // args.ping_bin) * n_bins * 8.0 * 6
+    check_resources(Estimate(grid, 0.0, [("MVBS grid", grid)],
+                             keys=f"the MVBS range bins (--range-bin {args.range_bin:g} m over up to {span:.3g} m: "
+                                  f"{n_bins:.3g} bins per beam; give a larger --range-bin)"),
+                    what=f"abacus sv --range-bin {args.range_bin:g}", max_memory_gb=args.max_memory)
 
 
 def command(args) -> int:
     import numpy as np
 
-    from processing.base.dataset import open_tree, write_tree
-    from processing.backscatter.sv import SV_GROUP, backscatter, write_mvbs_csv, write_nasc_csv
-    if not args.range_bin > 0 or args.ping_bin < 1:
-        raise UsageError("--range-bin must be positive (m) and --ping-bin at least 1")
+    from processing.base.atomic import staged_set
+    from processing.base.dataset import open_tree
+    from processing.backscatter.sv import SV_GROUP, LayerError, backscatter, write_mvbs_csv, write_nasc_csv
+    if not (math.isfinite(args.range_bin) and args.range_bin > 0) or args.ping_bin < 1:
+        raise UsageError("--range-bin must be a positive number of metres and --ping-bin at least 1")
     layers = _layers(args.layer)
-    out = check_output(args.output, overwrite=args.overwrite) if args.output else None
-    csv = check_output(args.csv, overwrite=args.overwrite, option="--csv") if args.csv else None
-    ncsv = check_output(args.nasc_csv, overwrite=args.overwrite, option="--nasc-csv") if args.nasc_csv else None
-    tree = backscatter(open_tree(args.input, max_memory_gb=args.max_memory, work_factor=3.0),
-                       args.settings, range_bin_m=args.range_bin, ping_bin=args.ping_bin, layers_m=layers)
+    out, csv, ncsv = check_outputs(
+        args, [("-o", args.output, False), ("--csv", args.csv, False), ("--nasc-csv", args.nasc_csv, False)],
+        inputs=[args.input, args.settings])
+    tree = open_tree(args.input, max_memory_gb=args.max_memory, work_factor=3.0)
+    _check_grid_bound(tree, args)
+    try:
+        tree = backscatter(tree, args.settings, range_bin_m=args.range_bin, ping_bin=args.ping_bin,
+                           layers_m=layers, max_memory_gb=args.max_memory)
+    except LayerError as exc:
+        raise UsageError(f"--layer {args.layer[exc.layer]}: {exc}") from None
     ds = tree[SV_GROUP].ds
     lin = ds["s_v_mean"].values
     nasc = ds["NASC"].values
@@ -63,14 +94,18 @@ def command(args) -> int:
                "noise_sigma_counts": float(ds.attrs["noise_sigma_counts"]),
                "grid": {"ping_bins": int(lin.shape[0]), "range_bins": int(lin.shape[1]),
                         "beams": int(lin.shape[2])}}
-    if out is not None:
-        write_tree(tree, out)
-    if csv is not None:
-        write_mvbs_csv(tree, csv)
-    if ncsv is not None:
-        write_nasc_csv(tree, ncsv)
+    # every output to a temporary, all renamed into place at the end: an error, a full disk
+    # or an interrupt part-way leaves none of them
+    with staged_set() as outputs:
+        if out is not None:
+            save_tree(tree, outputs.path(out), final=out)
+        if csv is not None:
+            write_mvbs_csv(tree, outputs.path(csv))
+        if ncsv is not None:
+            write_nasc_csv(tree, outputs.path(ncsv))
     if args.json:
-        print(json.dumps(summary))
+        from processing.tracking.tracks import strict_json
+        print(strict_json(summary))
     else:
         g = summary["grid"]
         print(f"MVBS: {g['ping_bins']} ping bin(s) x {g['range_bins']} range bin(s) x {g['beams']} beams; "

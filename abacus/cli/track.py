@@ -1,9 +1,7 @@
 """``abacus track``: track the fish of a dataset across pings, count each passage once."""
 from __future__ import annotations
 
-import json
-
-from abacus.cli.common import add_output_options, check_output
+from abacus.cli.common import add_output_options, check_outputs, save_tree
 
 HELP = "track detections across pings: per-fish tracks, TS, speed and track-based counts"
 
@@ -20,29 +18,62 @@ def add_parser(sub):
     c.set_defaults(func=command)
 
 
+def _check_ping_times(tree, source: str) -> None:
+    """Refuse a dataset whose ping times are missing or do not increase: tracks need the time
+    between pings (one line naming the file and the first ping out of order)."""
+    import numpy as np
+
+    from processing.base.dataset import ELEMENT_GROUP, DatasetError, group_of
+    eg = group_of(tree, ELEMENT_GROUP)
+    if eg is None or "ping_time" not in eg.variables:
+        return                                   # the reader names what is missing
+    t = eg["ping_time"].values
+    if np.issubdtype(t.dtype, np.datetime64):
+        bad = np.isnat(t)
+    elif t.dtype.kind in "iuf":
+        bad = ~np.isfinite(t.astype(float))
+    else:
+        raise DatasetError(f"{source}: /{ELEMENT_GROUP}/ping_time holds {t.dtype} values; tracking needs "
+                           f"the time of every ping")
+    if bad.any():
+        raise DatasetError(f"{source}: /{ELEMENT_GROUP}/ping_time of ping {int(np.flatnonzero(bad)[0])} is "
+                           f"missing (NaT/NaN); tracking needs the time of every ping")
+    step = np.diff(t)
+    back = np.flatnonzero(~(step > np.zeros_like(step)))
+    if back.size:
+        i = int(back[0]) + 1
+        raise DatasetError(f"{source}: /{ELEMENT_GROUP}/ping_time does not increase: ping {i} ({t[i]}) does "
+                           f"not come after ping {i - 1} ({t[i - 1]}); tracking needs pings in time order")
+
+
 def command(args) -> int:
     import processing
-    from processing.base.dataset import open_tree, write_tree
-    from processing.tracking.tracks import format_tracks, track_summary, write_tracks_csv
-    out = check_output(args.output, overwrite=args.overwrite) if args.output else None
-    csv = check_output(args.csv, overwrite=args.overwrite, option="--csv") if args.csv else None
-    plots = check_output(args.plots, overwrite=args.overwrite, option="--plots", folder=True) if args.plots else None
+    from processing.base.atomic import staged_set
+    from processing.base.dataset import open_tree
+    from processing.tracking.tracks import format_tracks, track_summary, write_tracks_csv, strict_json
+    out, csv, plots = check_outputs(
+        args, [("-o", args.output, False), ("--csv", args.csv, False), ("--plots", args.plots, True)],
+        inputs=[args.input, args.settings])
     tree = open_tree(args.input, max_memory_gb=args.max_memory, work_factor=3.0)
+    _check_ping_times(tree, str(args.input))
     if "Processing" not in tree.children or "Counts" not in tree["Processing"].children:
         tree = processing.count(tree, args.settings)
     tree = processing.track(tree, args.settings)
     result = track_summary(tree)
-    if out is not None:
-        write_tree(tree, out)
-    if csv is not None:
-        write_tracks_csv(tree, csv)
-    if plots is not None:
-        from processing.base.atomic import staged
-        from abacus.figures.tracks import track_figures
-        with staged(plots) as tmp:
+    # every output to a temporary, all renamed into place at the end: an error, a full disk
+    # or an interrupt part-way leaves none of them
+    with staged_set() as outputs:
+        if out is not None:
+            save_tree(tree, outputs.path(out), final=out)
+        if csv is not None:
+            write_tracks_csv(tree, outputs.path(csv))
+        if plots is not None:
+            from abacus.figures.tracks import track_figures
+            tmp = outputs.path(plots)
+            tmp.mkdir()
             track_figures(tree, tmp)
     if args.json:
-        print(json.dumps(result))
+        print(strict_json(result))
     else:
         print(format_tracks(result))
         for what, where in (("dataset", args.output), ("tracks CSV", args.csv), ("plots", args.plots)):

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from acoustics.scene.errors import SceneError
 
-__all__ = ["scenes_dir", "builtin_scenes", "builtin_scene", "resolve_scene_argument"]
+__all__ = ["scenes_dir", "builtin_scenes", "builtin_scene", "resolve_scene_argument", "did_you_mean"]
 
 
 def scenes_dir() -> Path:
@@ -33,10 +33,20 @@ def builtin_scene(name: str) -> Path:
         No built-in scene of that name; the message lists them.
     """
     stem = name[:-5] if name.endswith(".yaml") else name
-    if stem not in builtin_scenes():
-        raise SceneError(f"{name}: no such scene file, and no built-in scene of that name; "
-                         f"built-in scenes: {', '.join(builtin_scenes())}")
+    names = builtin_scenes()
+    if stem not in names:
+        raise SceneError(f"{name}: no such scene file, and no built-in scene of that name"
+                         f"{did_you_mean(stem, names)}; built-in scenes: {', '.join(names)}")
     return scenes_dir() / f"{stem}.yaml"
+
+
+def did_you_mean(name: str, names, *, cutoff: float = 0.75) -> str:
+    """" (did you mean 'X'?)" for the name of ``names`` closest to a mistyped ``name``
+    (difflib's ratio at least ``cutoff``, case ignored), or "" when none is close."""
+    import difflib
+    by_lower = {n.lower(): n for n in names}
+    close = difflib.get_close_matches(str(name).lower(), list(by_lower), n=1, cutoff=cutoff)
+    return f" (did you mean '{by_lower[close[0]]}'?)" if close else ""
 
 
 def resolve_scene_argument(arg) -> Path:

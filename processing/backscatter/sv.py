@@ -28,7 +28,7 @@ from processing.base.contract import SV_GROUP
 from processing.base.dataset import DatasetError
 
 __all__ = ["sv_cells", "sv_db", "mean_volume_backscatter", "nasc", "backscatter", "SV_GROUP",
-           "write_mvbs_csv", "write_nasc_csv"]
+           "write_mvbs_csv", "write_nasc_csv", "LayerError"]
 
 NMI_M = 1852.0
 
@@ -142,8 +142,56 @@ def nasc(s_v, range_m, layers_m) -> np.ndarray:
     return out
 
 
+class LayerError(DatasetError):
+    """A NASC layer that holds no range cell of the image (outside it, or thinner than a cell).
+
+    Attributes
+    ----------
+    layer : int
+        Its index in the layers given.
+    """
+
+    def __init__(self, message: str, layer: int):
+        super().__init__(message)
+        self.layer = layer
+
+
+def _check_layers(layers, range_m, shape, range_bin_m: float, ping_bin: int,
+                  max_memory_gb: float | None = None) -> None:
+    """Every NASC layer holds at least one range cell of the image (else its NASC would be a
+    meaningless 0); the MVBS grid of ``range_bin_m`` fits the memory limit (a bin of 1e-9 m
+    would ask for billions of bins) — both checked before anything is allocated.
+
+    Raises
+    ------
+    LayerError
+        Names the layer and the image's range and cell size.
+    processing.base.resources.ResourceError
+        The grid would not fit the memory limit.
+    """
+    from processing.base.resources import Estimate, check_resources
+    r = np.asarray(range_m, float)
+    cell = float(np.median(np.diff(r))) if r.size > 1 else 0.0
+    for k, (a, b) in enumerate(np.asarray(layers, float).reshape(-1, 2)):
+        if not np.any((r >= a) & (r < b)):
+            where = ("outside the image" if b <= r[0] or a > r[-1] else
+                     f"thinner than the image's range cells ({cell:.4g} m) and holds none")
+            raise LayerError(f"layer {a:g}–{b:g} m is {where}: the image covers {r[0]:.3f}–{r[-1]:.3f} m "
+                             f"in cells of {cell:.4g} m; give layers inside it, at least one cell thick", k)
+    n_pings, _, n_beams = shape
+    span = float(r[-1] - r[0]) if r.size else 0.0
+    n_bins = span / range_bin_m + 1.0 if range_bin_m > 0 else np.inf
+    n_ping_bins = np.ceil(n_pings / max(int(ping_bin), 1))
+    # the grid (mean s_v, Sv, per-bin sums) and a CSV row per cell: ≈ 6 float64 per cell and bin
+    grid = n_ping_bins * n_bins * n_beams * 8.0 * 6 + n_bins * n_beams * 8.0
+    check_resources(Estimate(grid, 0.0, [("MVBS grid", grid)],
+                             keys=f"the MVBS range bins ({range_bin_m:g} m over {span:.3g} m: {n_bins:.3g} "
+                                  f"bins per beam; give a larger range bin)"),
+                    what="the Sv grid", max_memory_gb=max_memory_gb)
+
+
 def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int = 10,
-                layers_m=None, image_group: str | None = None):
+                layers_m=None, image_group: str | None = None, max_memory_gb: float | None = None):
     """Sv products of a dataset: MVBS on a (ping bin, range bin, beam) grid and NASC of range
     layers per ping and beam, written to /Processing/Sv.
 
@@ -161,6 +209,9 @@ def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int 
         NASC layers [start, stop] (m); default one layer, the image's range.
     image_group : str, optional
         Subarray whose image is used (default: the detector's).
+    max_memory_gb : float, optional
+        The memory limit the MVBS grid must fit (default:
+        :func:`processing.base.resources.memory_limit_bytes`).
 
     Returns
     -------
@@ -168,6 +219,13 @@ def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int 
         A copy with /Processing/Sv: ``Sv_mean`` (dB re 1 m⁻¹, NaN where the bin holds noise
         only) and ``s_v_mean`` (m⁻¹) on (ping_bin, range_bin, beam); ``NASC`` (m² nmi⁻²) on
         (ping_time, layer, beam); bin edges and beam angles as coordinates.
+
+    Raises
+    ------
+    LayerError
+        A layer that holds no range cell of the image (its NASC would be a meaningless 0).
+    processing.base.resources.ResourceError
+        A grid (``range_bin_m``) too fine for the memory limit, refused before it is allocated.
     """
     import xarray as xr
 
@@ -201,10 +259,11 @@ def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int 
     s_v = sv_cells(mags, im.range_m, gain_counts_m=cal.gain_counts_m,
                    absorption_db_per_m=cal.absorption_db_per_m, range_width_m=l_r,
                    solid_angle_sr=psi, noise_power=2 * sigma**2)
-    grid, r_edges, p_edges = mean_volume_backscatter(s_v, im.range_m, range_bin_m=range_bin_m,
-                                                     ping_bin=ping_bin)
     layers = np.asarray(layers_m if layers_m is not None else [[im.range_m[0], im.range_m[-1] + 1e-9]],
                         float).reshape(-1, 2)
+    _check_layers(layers, im.range_m, mags.shape, range_bin_m, ping_bin, max_memory_gb)
+    grid, r_edges, p_edges = mean_volume_backscatter(s_v, im.range_m, range_bin_m=range_bin_m,
+                                                     ping_bin=ping_bin)
     area = nasc(s_v, im.range_m, layers)
     beams = np.degrees(im.beam_angle_rad)
     ds = xr.Dataset(

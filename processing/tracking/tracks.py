@@ -27,7 +27,7 @@ from processing.base.dataset import DatasetError, group_of, has_group
 from processing.pipeline import pose_of
 
 __all__ = ["TRACKS_GROUP", "track", "tracks_of", "track_summary", "format_tracks",
-           "write_tracks_csv"]
+           "write_tracks_csv", "strict_json"]
 
 
 def _ping_times_s(tree):
@@ -268,7 +268,7 @@ def _per_track(ds):
             elif name == "heading_deg":
                 # compass heading of the horizontal velocity: 0 = world +x (forward), 90 = +y
                 vx, vy = float(ds["track_velocity_world_x"][i]), float(ds["track_velocity_world_y"][i])
-                row[name] = float(np.degrees(np.arctan2(vy, vx)) % 360.0)
+                row[name] = _finite(np.degrees(np.arctan2(vy, vx)) % 360.0)
             elif var in ds:
                 v = ds[var].values[i]
                 if np.issubdtype(np.asarray(v).dtype, np.integer):
@@ -282,6 +282,42 @@ def _per_track(ds):
 _INTEGER_SCORES = ("true_passages", "track_count_error", "tracks_following_a_fish", "num_switches",
                    "num_fragmentations", "mostly_tracked", "num_false_positives", "num_misses",
                    "num_unique_objects")
+
+
+def _finite(v):
+    """A float, or None where it is NaN or infinite (no value: JSON's null, CSV's empty cell)."""
+    v = float(v)
+    return v if np.isfinite(v) else None
+
+
+def _nanmean(values):
+    """The mean of the finite values, None when there are none."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    return float(v.mean()) if v.size else None
+
+
+def _no_nan(obj):
+    """``obj`` with every non-finite float (Python or numpy) replaced by None, numpy scalars by
+    Python numbers."""
+    if isinstance(obj, dict):
+        return {k: _no_nan(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_no_nan(v) for v in obj]
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if np.isfinite(obj) else None
+    return obj
+
+
+def strict_json(obj) -> str:
+    """``obj`` as strict JSON (RFC 8259): a value that is NaN or infinite is ``null``, never
+    ``NaN`` or ``Infinity``, which JSON readers other than Python's refuse."""
+    import json
+    return json.dumps(_no_nan(obj), allow_nan=False)
 
 
 def track_summary(tree: xr.DataTree) -> dict:
@@ -300,16 +336,16 @@ def track_summary(tree: xr.DataTree) -> dict:
     ds = tracks_of(tree)
     a = ds.attrs
     s = {"tracks": int(ds.sizes["track"]), "track_count": int(a["track_count"]),
-         "track_density_per_m3": float(a["track_density_per_m3"]),
-         "counting_volume_m3": float(a["counting_volume_m3"]), "duration_s": float(a["duration_s"]),
+         "track_density_per_m3": _finite(a["track_density_per_m3"]),
+         "counting_volume_m3": _finite(a["counting_volume_m3"]), "duration_s": _finite(a["duration_s"]),
          "method": str(a["method"])}
     c = group_of(tree, COUNTS_GROUP)
     if c is not None:
         if "count_after" in c and c["count_after"].size and np.isfinite(c["count_after"].values).any():
-            s["per_ping_count_mean"] = float(np.nanmean(c["count_after"].values))
-            s["per_ping_density_per_m3"] = float(np.nanmean(c["density_per_m3"].values))
+            s["per_ping_count_mean"] = _nanmean(c["count_after"].values)
+            s["per_ping_density_per_m3"] = _nanmean(c["density_per_m3"].values)
         if "true_density_per_m3" in c and c["true_density_per_m3"].size:
-            s["true_density_per_m3"] = float(np.nanmean(c["true_density_per_m3"].values))
+            s["true_density_per_m3"] = _nanmean(c["true_density_per_m3"].values)
     for k in ("true_passages", "track_count_error", "tracks_following_a_fish", "mota", "motp", "idf1",
               "num_switches", "num_fragmentations", "mostly_tracked", "num_false_positives",
               "num_misses", "num_unique_objects", "speed_error_mean", "speed_error_sd",
@@ -317,7 +353,7 @@ def track_summary(tree: xr.DataTree) -> dict:
         if k in a:
             v = float(a[k])
             s[k] = None if not np.isfinite(v) else (int(v) if k in _INTEGER_SCORES else v)
-    return {"tracks": _per_track(ds), "summary": s}
+    return _no_nan({"tracks": _per_track(ds), "summary": s})
 
 
 def format_tracks(result: dict) -> str:
@@ -344,18 +380,18 @@ def format_tracks(result: dict) -> str:
     s = result["summary"]
     lines.append("")
     lines.append(f"{s['tracks']} track(s) ({s['method']}); {s['track_count']} passage(s) through the counting "
-                 f"volume ({s['counting_volume_m3']:.2f} m³) in {s['duration_s']:.2f} s; "
-                 f"track density {s['track_density_per_m3']:.4f} m⁻³")
+                 f"volume ({f(s['counting_volume_m3'], '.2f')} m³) in {f(s['duration_s'], '.2f')} s; "
+                 f"track density {f(s['track_density_per_m3'], '.4f')} m⁻³")
     if "per_ping_count_mean" in s:
-        lines.append(f"per-ping counts beside it: {s['per_ping_count_mean']:.2f} per ping, density "
-                     f"{s['per_ping_density_per_m3']:.4f} m⁻³")
+        lines.append(f"per-ping counts beside it: {f(s['per_ping_count_mean'], '.2f')} per ping, density "
+                     f"{f(s['per_ping_density_per_m3'], '.4f')} m⁻³")
     if "true_density_per_m3" in s:
-        lines.append(f"true density of the counting volume: {s['true_density_per_m3']:.4f} m⁻³")
+        lines.append(f"true density of the counting volume: {f(s['true_density_per_m3'], '.4f')} m⁻³")
     if truth:
-        lines.append(f"truth: {s['true_passages']} fish passed through the volume (track count error "
-                     f"{s['track_count_error']:+d}); IDF1 {f(s['idf1'], '.3f')}, MOTA {f(s['mota'], '.3f')}, "
-                     f"MOTP {f(s['motp'], '.3f')} m, {int(s['num_switches'])} ID switch(es), "
-                     f"{int(s['num_fragmentations'])} fragmentation(s)")
+        lines.append(f"truth: {f(s['true_passages'], 'd')} fish passed through the volume (track count error "
+                     f"{f(s.get('track_count_error'), '+d')}); IDF1 {f(s['idf1'], '.3f')}, MOTA {f(s['mota'], '.3f')}, "
+                     f"MOTP {f(s['motp'], '.3f')} m, {f(s.get('num_switches'), 'd')} ID switch(es), "
+                     f"{f(s.get('num_fragmentations'), 'd')} fragmentation(s)")
         lines.append(f"per-track errors: speed {f(s['speed_error_mean'], '+.3f')} ± {f(s['speed_error_sd'], '.3f')} "
                      f"m/s, TS {f(s['ts_error_mean'], '+.2f')} ± {f(s['ts_error_sd'], '.2f')} dB")
     return "\n".join(lines)
