@@ -260,18 +260,27 @@ def main(argv=None) -> int:
     a documented exit status, never a traceback.
 
     ``argv`` None: the process' own command line (``abacus ...``, ``python -m acoustics``)."""
-    from abacus.clash import foreign_packages
-    clash = foreign_packages()   # PyPI's acoustics / processing in our place (README, install)
-    if clash:
-        print(f"error: {clash}", file=sys.stderr)
-    code = EXIT_USAGE if clash else _command(argv)
-    return code
-
-
-def _command(argv) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)   # --help and --version end here, before any heavy import
+    # first of all: an interrupt while the command's modules load (SIGINT was a traceback
+    # there, before the handlers) ends it as any interrupt does
     _install_signal_handlers()
+    try:
+        from abacus.clash import foreign_packages
+        clash = foreign_packages()   # PyPI's acoustics / processing in our place (README, install)
+        if clash:
+            print(f"error: {clash}", file=sys.stderr)
+            return EXIT_USAGE
+        parser = build_parser()
+        args = parser.parse_args(argv)   # --help and --version end here, before any heavy import
+    except KeyboardInterrupt:
+        _clean_up("interrupted")
+        return EXIT_INTERRUPTED
+    except _Terminated:
+        _clean_up("terminated")
+        return EXIT_TERMINATED
+    return _command(args)
+
+
+def _command(args) -> int:
     try:
         def loaded(*errors):
             # an error class whose module was never imported cannot have been raised: the
