@@ -129,3 +129,23 @@ def test_an_interrupt_landing_in_a_finaliser_ends_the_command_as_an_interrupt(tm
     assert r.returncode == status and r.stderr.strip() == word, r.stderr
     assert "went on" not in r.stdout
     assert time.monotonic() - t0 < 4.5      # neither the finaliser's 5 s nor the work's 5 s
+
+
+def test_an_interrupt_that_left_an_eval_still_ends_python_m_abacus_with_130(tmp_path):
+    """A KeyboardInterrupt that passed through an ``eval`` of a string (namedtuple and dataclass
+    definitions run one while modules load: seen in the reliability probes) is recorded by
+    CPython as unhandled, and ``python -m`` would end the process by SIGINT (-2) after the
+    command returned 130; the command still ends with 130 'interrupted'."""
+    (tmp_path / "evalcase.py").write_text(
+        "import os, signal, sys, threading\n"
+        "import abacus.cli.beams as b\n"
+        "def boom(args):\n"
+        "    threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()\n"
+        "    eval(\"__import__('time').sleep(5)\")   # the signal lands inside the eval\n"
+        "    return 0\n"
+        "b.command = boom\n"
+        "from abacus.cli import main\n"
+        "if __name__ == '__main__':\n"
+        "    sys.exit(main(['beams', '--json']))\n")
+    r = subprocess.run([sys.executable, "-m", "evalcase"], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 130 and r.stderr.strip() == "interrupted", (r.returncode, r.stderr)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+import threading
 import warnings
 from pathlib import Path
 
@@ -109,6 +110,11 @@ def _clean_up(message: str | None = None):
             stream.flush()
         except (OSError, ValueError):
             pass
+    # the interrupt is handled: CPython still records it as unhandled if it left an eval() or
+    # exec() of a string on its way here (namedtuple and dataclass definitions run one while
+    # modules load), and then ends `python -m abacus` by SIGINT instead of this status; a new
+    # evaluation of a string clears that record (CPython 3.11–3.13)
+    exec("")
 
 
 def _end_now(code: int, message: str | None = None):
@@ -158,10 +164,12 @@ def _install_signal_handlers():
     state = {"seen": False, "held": False}
 
     def handler(signum, frame):
-        if _SWALLOWED.get(signum):     # the interrupt a finaliser swallowed, delivered again
-            if _inside_hook(frame):     # raised here, it would be dropped again: the next one
+        with _SWALLOWED_LOCK:
+            again = _SWALLOWED.pop(signum, None)    # the interrupt a finaliser swallowed
+            if again is not None and _inside_hook(frame):
+                _SWALLOWED[signum] = "pending"      # raised here, it would be dropped again
                 return
-            del _SWALLOWED[signum]
+        if again is not None:
             raise KeyboardInterrupt if signum == signal.SIGINT else _Terminated()
         code = EXIT_INTERRUPTED if signum == signal.SIGINT else EXIT_TERMINATED
         word = "interrupted" if signum == signal.SIGINT else "terminated"
@@ -188,8 +196,10 @@ def _install_signal_handlers():
         sys.unraisablehook = _unraisable_ends_an_interrupt(sys.unraisablehook)
 
 
-#: the signal of an interrupt a finaliser swallowed -> True until it is raised again
+#: the signal of an interrupt a finaliser swallowed -> "pending" (to be sent to the main thread
+#: again) or "sent", until the handler raises it anew; one signal in flight at a time
 _SWALLOWED: dict = {}
+_SWALLOWED_LOCK = threading.RLock()
 #: the code of the unraisable hook (an interrupt raised while it runs would be dropped)
 _HOOK_CODES: set = set()
 
@@ -216,15 +226,22 @@ def _unraisable_ends_an_interrupt(default_hook):
 
     def deliver_again(signum):
         main = threading.main_thread()
-        while _SWALLOWED.get(signum) and main.is_alive():
-            signal.pthread_kill(main.ident, signum)
-            time.sleep(0.02)
+        while main.is_alive():
+            with _SWALLOWED_LOCK:
+                state = _SWALLOWED.get(signum)
+                if state is None:           # raised anew: done
+                    return
+                if state == "pending":
+                    _SWALLOWED[signum] = "sent"
+                    signal.pthread_kill(main.ident, signum)
+            time.sleep(0.01)
 
     def hook(unraisable):
         if _RECEIVED and unraisable.exc_type is not None and \
                 issubclass(unraisable.exc_type, (KeyboardInterrupt, _Terminated)):
             signum = signal.SIGINT if _RECEIVED[0][0] == EXIT_INTERRUPTED else signal.SIGTERM
-            _SWALLOWED[signum] = True
+            with _SWALLOWED_LOCK:
+                _SWALLOWED[signum] = "pending"
             threading.Thread(target=deliver_again, args=(signum,), daemon=True).start()
             return
         default_hook(unraisable)
@@ -271,6 +288,10 @@ def main(argv=None) -> int:
             return EXIT_USAGE
         parser = build_parser()
         args = parser.parse_args(argv)   # --help and --version end here, before any heavy import
+        # the process is the command's own (`abacus ...`, `python -m abacus`), not a program
+        # that called main(argv): only then may a command start worker processes ("spawn"
+        # would run an unguarded calling script again in each)
+        args.standalone = argv is None
     except KeyboardInterrupt:
         _clean_up("interrupted")
         return EXIT_INTERRUPTED

@@ -55,7 +55,9 @@ def command(args) -> int:
     with ExitStack() as stack:
         # the figures' drawing starts first: a pool's workers import matplotlib while this
         # process imports and simulates (abacus.figures.drawing)
-        drawing = stack.enter_context(figure_drawing()) if args.plots else None
+        drawing = None
+        if args.plots:
+            drawing = stack.enter_context(figure_drawing(getattr(args, "standalone", False)))
         import processing
         from abacus.cli.beams import beam_numbers
         from acoustics.simulation.run import simulate
@@ -116,13 +118,14 @@ def command(args) -> int:
     return 0
 
 
-def figure_drawing():
-    """How ``abacus run`` draws its figures: a pool of one worker where this process can spare
-    a core for it (the run's own threads use the others; measured in docs/performance.md, "End
-    to end"), else in this process."""
+def figure_drawing(standalone: bool):
+    """How ``abacus run`` draws its figures: in a pool of one worker process where the process
+    is the command's own (``standalone``: not a program that called ``main(argv)``, whose
+    script a "spawn" worker would run again) and has a second core for it (measured in
+    docs/performance.md, "End to end"); else in this process."""
     from abacus.figures.drawing import Drawing, PoolDrawing
     from processing.base.resources import usable_cores
-    return PoolDrawing(workers=1) if usable_cores() >= 2 else Drawing()
+    return PoolDrawing(workers=1) if standalone and usable_cores() >= 2 else Drawing()
 
 
 def run_notes(tree, caught) -> list[str]:

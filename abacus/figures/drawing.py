@@ -70,22 +70,34 @@ class Drawing:
 class PoolDrawing(Drawing):
     """Draws the jobs in ``workers`` processes of a standard-library pool ("spawn").
 
-    The workers start at once and import matplotlib while this process goes on; they ignore
+    The workers start at once and import matplotlib while this process goes on. They ignore
     SIGINT (a Ctrl-C reaches the whole process group: the command handles it and closes the
-    pool) and end when this process ends, even killed (they watch :func:`multiprocessing.
-    parent_process`'s sentinel).
+    pool), from their first instruction: they are started with SIGINT blocked, as the standard
+    library starts its resource tracker, and unblock it once they ignore it. They end when
+    this process ends, even killed (they watch :func:`multiprocessing.parent_process`'s
+    sentinel). Their warnings are not shown: a figure's are not the command's.
     """
 
     def __init__(self, workers: int = 1):
         import multiprocessing
+        import signal
         from concurrent.futures import ProcessPoolExecutor
         super().__init__()
         self.workers = max(1, int(workers))
         self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
                                          initializer=_start_worker)
         self._open = True
-        for _ in range(self.workers):       # one process started per job while none is idle
-            self._pool.submit(_ready)
+        mask = hasattr(signal, "pthread_sigmask")
+        before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT}) if mask else None
+        try:
+            for _ in range(self.workers):   # one process started per job while none is idle
+                self._pool.submit(_ready)
+        except BaseException:
+            self.close(cancel=True)
+            raise
+        finally:
+            if mask:    # a SIGINT that came meanwhile is delivered here, to this process
+                signal.pthread_sigmask(signal.SIG_SETMASK, before)
 
     def submit(self, job, *args) -> Future:
         future = self._pool.submit(job, *args)
@@ -108,7 +120,11 @@ def _ready() -> None:
 def _start_worker() -> None:
     """A pool worker's start: SIGINT left to the command, an end with it, matplotlib loaded."""
     import signal
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    import warnings
+    signal.signal(signal.SIGINT, signal.SIG_IGN)        # a pending one is dropped with it
+    if hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    warnings.simplefilter("ignore")
     _end_with_parent()
     import matplotlib
     matplotlib.use("Agg")
