@@ -12,12 +12,14 @@ from __future__ import annotations
 import warnings
 from functools import lru_cache
 
+import numpy as np
+
 from acoustics.scene.errors import SceneError, SceneWarning, key_tuple
 from processing.base.config import ConfigError, ConfigModel, validate_file
 from processing.settings import ProcessingSettings
 
-__all__ = ["load_run", "settings_of", "settings_problems", "resolve_processing", "json_schema",
-           "json_schema_text"]
+__all__ = ["load_run", "settings_of", "settings_problems", "record_problems", "record_window_m",
+           "resolve_processing", "json_schema", "json_schema_text"]
 
 
 class _RunProcessing(ConfigModel):
@@ -63,9 +65,65 @@ def resolve_processing(scene):
     return scene.model_copy(update={"processing": settings.model_dump(mode="json", by_alias=True)})
 
 
+def record_window_m(scene) -> tuple[float, float]:
+    """The ranges (m) a scene's record spans, c·t/2 from ``sampling.time_offset_s`` to the end
+    of its last sample (``time_offset_s + samples / rate_hz``): where an image can be formed."""
+    c, s = scene.medium.sound_speed_m_s, scene.sampling
+    return c * s.time_offset_s / 2, c * (s.time_offset_s + s.samples / s.rate_hz) / 2
+
+
+def _record_how(scene) -> str:
+    s = scene.sampling
+    return (f"c·t/2 for t from sampling.time_offset_s = {s.time_offset_s:g} s over sampling.samples "
+            f"= {s.samples} at sampling.rate_hz = {s.rate_hz:g} Hz")
+
+
+def record_problems(scene, settings: ProcessingSettings) -> list[tuple[str, str]]:
+    """Settings that the scene's record cannot serve at all — processing would stop on them:
+    (message, key path) pairs that make the run file an error (``abacus scene check`` reports
+    them, not ``abacus run`` halfway)."""
+    out = []
+    near, far = record_window_m(scene)
+    image = settings.image.range_m
+    if image is not None and (image[0] >= far or image[1] <= near):
+        need = int(np.ceil((2 * image[0] / scene.medium.sound_speed_m_s
+                            - scene.sampling.time_offset_s) * scene.sampling.rate_hz)) + 1
+        out.append((f"the image range {image[0]:g}–{image[1]:g} m lies outside the record, "
+                    f"{near:.4g}–{far:.4g} m ({_record_how(scene)}): give an image range that "
+                    f"overlaps the record, or record farther (sampling.samples of at least {need})"
+                    if image[0] >= far else
+                    f"the image range {image[0]:g}–{image[1]:g} m lies outside the record, "
+                    f"{near:.4g}–{far:.4g} m ({_record_how(scene)}): give an image range that "
+                    f"overlaps the record, or start recording earlier (sampling.time_offset_s)",
+                    "processing.image.range_m"))
+        return out
+    lo, hi = (near, far) if image is None else (max(near, image[0]), min(far, image[1]))
+    noise = settings.detect.noise
+    if settings.detect.needs_noise and noise.source == "region" and noise.range_m is not None:
+        a, b = noise.range_m
+        if a >= hi or b <= lo:
+            out.append((f"the noise region {a:g}–{b:g} m holds no image cell: the image spans "
+                        f"{lo:.4g}–{hi:.4g} m (processing.image.range_m within the record); give a "
+                        f"region inside it", "processing.detect.noise.range_m"))
+    return out
+
+
 def settings_problems(scene, settings: ProcessingSettings) -> list[tuple[str, str]]:
     """Settings that are legal but defeat themselves on this scene: (message, key path) pairs."""
     out = []
+    near, far = record_window_m(scene)
+    image = settings.image.range_m
+    if image is not None and image[0] < far and image[1] > near and (image[0] < near
+                                                                     or image[1] > far):
+        out.append((f"the image range {image[0]:g}–{image[1]:g} m reaches beyond the record, "
+                    f"{near:.4g}–{far:.4g} m ({_record_how(scene)}): the image stops at the "
+                    f"record's ends", "processing.image.range_m"))
+    count = settings.count.range_m
+    lo, hi = (near, far) if image is None else (max(near, image[0]), min(far, image[1]))
+    if count is not None and (count[0] >= hi or count[1] <= lo):
+        out.append((f"the counting range {count[0]:g}–{count[1]:g} m holds no image cell (the "
+                    f"image spans {lo:.4g}–{hi:.4g} m): nothing can be counted there",
+                    "processing.count.range_m"))
     st = settings.detect
     background = scene.noise.enabled or (scene.effects.reverberation.enabled and scene.boundaries)
     if st.needs_noise and st.noise.source in ("image", "region") and not background:
@@ -111,6 +169,14 @@ def load_run(path, *, check: bool = True):
     except ConfigError:
         marks = {}
     settings = _validated(scene.processing, file=path, marks=marks)
+    problems = record_problems(scene, settings)
+    if problems:
+        lines = []
+        for message, key in problems:
+            line = marks.get(tuple(key_tuple(key)))
+            lines.append(f"{path}:{line}: {key}: {message}" if line else f"{path}: {key}: {message}")
+        head = f"{len(lines)} problems:\n" if len(lines) > 1 else ""
+        raise SceneError(head + "\n".join(lines))
     if check:
         for message, key in settings_problems(scene, settings):
             line = marks.get(tuple(key_tuple(key)))

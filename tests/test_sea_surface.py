@@ -187,7 +187,7 @@ def _sinusoid_paths(s_pt, p_pt, amp, lam, omega, t, x_lo, x_hi, level):
         r1, r2 = np.linalg.norm(X - s_pt), np.linalg.norm(X - p_pt)
         nrm = np.array([dz(x), 0.0, -1.0]) / np.hypot(1, dz(x))       # up, towards the water
         cos_t = abs((X - s_pt) @ nrm) / r1
-        kappa = d2z(x) / (1 + dz(x) ** 2) ** 1.5    # >0: surface curves down (a trough, concave)
+        kappa = d2z(x) / (1 + dz(x) ** 2) ** 1.5    # >0: a crest (z is depth), concave seen from below: focuses
         total = r1 + r2
         focus = total - 2 * r1 * r2 * kappa / cos_t
         out.append((X, total, total / np.sqrt(total * abs(focus))))

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["GRAVITY_M_S2", "pierson_moskowitz", "jonswap", "significant_wave_height_m",
-           "MovingSurface", "wind_sea", "swell"]
+           "MovingSurface", "wind_sea", "swell", "surface_of"]
 
 GRAVITY_M_S2 = 9.81
 
@@ -145,6 +145,49 @@ class MovingSurface:
             ex -= s @ kx
             ey -= s @ ky
         return eta, ex, ey
+
+    @property
+    def reach_m(self) -> float:
+        """The most the surface can rise above or fall below its mean level, Σ|a| (m)."""
+        return float(np.sum(np.abs(self.amplitude_m)))
+
+    def elevation_series(self, x_m, y_m, times_s):
+        """η (m, up) at fixed points over many times, shape (n, T) for n points and T times.
+
+        Each point's spatial phases are taken once, and every block of times is one matrix
+        product, η = Re[(a e^{i(k·x + ϕ)}) · e^{−iωt}], so that every ping of a long run costs
+        little (the scene check's per-ping test that the sea stays above the sonar and targets).
+        """
+        x = np.asarray(x_m, float).reshape(-1)
+        y = np.asarray(y_m, float).reshape(-1)
+        t = np.asarray(times_s, float).reshape(-1)
+        out = np.zeros((x.size, t.size))
+        c = self.amplitude_m.size
+        if not (x.size and t.size and c):
+            return out
+        spatial = self.amplitude_m * np.exp(1j * (np.outer(x, self.k_m[:, 0])
+                                                  + np.outer(y, self.k_m[:, 1]) + self.phase_rad))
+        block = max(1, (1 << 21) // c)
+        for lo in range(0, t.size, block):
+            temporal = np.exp(-1j * np.outer(self.omega_rad_s, t[lo:lo + block]))
+            out[:, lo:lo + block] = (spatial @ temporal).real
+        return out
+
+    def elevation_at(self, x_m, y_m, time_s):
+        """η (m, up) at points that move: one value per (x, y, t), the three broadcast together
+        (e.g. a target's position at each ping and that ping's time)."""
+        x, y, t = np.broadcast_arrays(*(np.asarray(v, float) for v in (x_m, y_m, time_s)))
+        shape = x.shape
+        x, y, t = (v.reshape(-1) for v in (x, y, t))
+        out = np.zeros(x.size)
+        c = max(self.amplitude_m.size, 1)
+        block = max(1, (1 << 21) // c)
+        for lo in range(0, x.size, block):
+            sl = slice(lo, lo + block)
+            arg = (np.outer(x[sl], self.k_m[:, 0]) + np.outer(y[sl], self.k_m[:, 1])
+                   - np.outer(t[sl], self.omega_rad_s) + self.phase_rad)
+            out[sl] = np.cos(arg) @ self.amplitude_m
+        return out.reshape(shape)
 
     def height(self, x_m, y_m, time_s: float):
         """The surface z(x, y) (m, world frame, z down) and its derivatives at time t.
@@ -330,3 +373,18 @@ def swell(*, components, center_m=(0.0, 0.0), size_m=(60.0, 60.0), resolution_m:
     kv = np.column_stack([k * np.cos(th), k * np.sin(th)])
     return MovingSurface(x, y, kv, c[:, 0], np.radians(c[:, 3]), _omega(k, depth_m),
                          float(mean_level_m), 0.0)
+
+
+def surface_of(spec, seed: int = 0) -> MovingSurface:
+    """The surface of a scene's ``wind_sea`` or ``swell`` shape (before its transform), ``seed``
+    the scene's: the sea :func:`acoustics.paths.meshes.moving_surface` builds for the simulation
+    (tests/test_scene_bounds.py checks they agree), for the scene check, which may not import the
+    mesh module (it imports the scene package)."""
+    common = dict(center_m=spec.center_m, size_m=spec.size_m, resolution_m=spec.resolution_m,
+                  depth_m=spec.water_depth_m, mean_level_m=spec.mean_level_m)
+    if spec.shape == "wind_sea":
+        return wind_sea(wind_speed_m_s=spec.wind_speed_m_s, direction_deg=spec.direction_deg,
+                        fetch_m=None if spec.fetch_km is None else 1e3 * spec.fetch_km,
+                        spreading=spec.spreading, seed=seed + spec.seed, **common)
+    return swell(components=[(w.amplitude_m, w.wavelength_m, w.direction_deg, w.phase_deg)
+                             for w in spec.waves], **common)

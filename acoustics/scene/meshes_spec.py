@@ -11,28 +11,78 @@ either frame.
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Literal, Union
 
-from pydantic import Discriminator, Field, Tag, field_validator, model_validator
+from pydantic import (AfterValidator, BeforeValidator, Discriminator, Field, Tag, field_validator,
+                      model_validator)
 
 from processing.base.config import (ConfigModel, Count, NonNegativeReal, PositiveCount, PositiveReal,
-                               Real, Vec3)
+                               Real)
 
 __all__ = ["MeshSpec", "BoundarySpec", "MeshTargetSpec", "ReverberationSpec", "SpecularSpec",
-           "MESH_SUFFIXES"]
+           "MESH_SUFFIXES", "MAX_EXTENT_M", "Coordinate", "Position3", "Direction3", "Size",
+           "Resolution", "Degrees", "BREAKING_STEEPNESS", "Bounded"]
 
 #: file types read through trimesh
 MESH_SUFFIXES = (".obj", ".stl", ".ply", ".glb", ".gltf", ".off")
+
+# ------------------------------------------------------------------ bounded quantities
+# Every length, position and resolution of a scene is bounded, so that no value the schema
+# accepts overflows later (a size of 1e300 squared, a resolution of 1e-300 divided into a size,
+# a scale of 1e300 on a vertex): the bounds are generous for a sonar scene and the same wherever
+# the quantity appears (sonar, targets, meshes).
+
+#: the largest position or size (m) a scene may hold: 100 km from the world origin
+MAX_EXTENT_M = 1e5
+#: a wave steeper than this (height / wavelength = 2a/λ) breaks (Stokes' limit, ≈ 1/7)
+BREAKING_STEEPNESS = 1.0 / 7.0
+
+
+def _finite_number(v):
+    if isinstance(v, float) and not math.isfinite(v):
+        raise ValueError("must be a finite number (not inf or nan)")
+    return v
+
+
+def Bounded(lo: float, hi: float, *, positive: bool = False):
+    """A real number within [lo, hi]: a number (no string), finite, its bounds in the JSON
+    Schema as ``minimum`` and ``maximum`` (so a type, usable inside tuples). ``positive``: a
+    size, whose value of 0 or less is refused as "must be > 0" before its lower bound is
+    checked."""
+    if not positive:
+        return Annotated[float, Field(strict=True, ge=lo, le=hi), BeforeValidator(_finite_number)]
+
+    def at_least(v):
+        if v < lo:
+            raise ValueError(f"must be >= {lo:g}")
+        return v
+    return Annotated[float, Field(strict=True, gt=0, le=hi, json_schema_extra={"minimum": lo}),
+                     BeforeValidator(_finite_number), AfterValidator(at_least)]
+
+
+#: a position (m) along one axis, within ±100 km
+Coordinate = Bounded(-MAX_EXTENT_M, MAX_EXTENT_M)
+Position3 = tuple[Coordinate, Coordinate, Coordinate]
+#: a direction's component (any length, normalised where used)
+Direction3 = tuple[Bounded(-1e6, 1e6), Bounded(-1e6, 1e6), Bounded(-1e6, 1e6)]
+#: a size (m) of a shape: 0.1 mm to 100 km
+Size = Bounded(1e-4, MAX_EXTENT_M, positive=True)
+#: a grid step (m): 1 mm to 1 km
+Resolution = Bounded(1e-3, 1e3, positive=True)
+#: an angle written and held in degrees, within ±360°
+Degrees = Bounded(-360.0, 360.0)
 
 
 class Transform(ConfigModel):
     """Applied after the shape is built: scale, then rotate (x, then y, then z axis, degrees,
     right-handed), then translate."""
 
-    scale: PositiveReal = 1.0
-    rotate_deg: Vec3 = (0.0, 0.0, 0.0)
-    translate_m: Vec3 = (0.0, 0.0, 0.0)
+    scale: Bounded(1e-3, 1e3, positive=True) = 1.0
+    """Uniform scale, 0.001 (a file in millimetres) to 1000."""
+    rotate_deg: tuple[Degrees, Degrees, Degrees] = (0.0, 0.0, 0.0)
+    translate_m: Position3 = (0.0, 0.0, 0.0)
 
 
 class _Shape(ConfigModel):
@@ -43,9 +93,9 @@ class PlaneShape(_Shape):
     """A flat rectangle: centre, unit normal (any length, normalised), side lengths."""
 
     shape: Literal["plane"] = "plane"
-    center_m: Vec3 = (0.0, 0.0, 0.0)
-    normal: Vec3 = (0.0, 0.0, 1.0)
-    size_m: tuple[PositiveReal, PositiveReal] = (200.0, 200.0)
+    center_m: Position3 = (0.0, 0.0, 0.0)
+    normal: Direction3 = (0.0, 0.0, 1.0)
+    size_m: tuple[Size, Size] = (200.0, 200.0)
     segments: tuple[PositiveCount, PositiveCount] = (1, 1)
     """Triangle grid resolution (a plane needs only 1 x 1; more only for the view)."""
 
@@ -55,16 +105,27 @@ class RoughFloorShape(_Shape):
     Gaussian random field with RMS height and correlation length (Gaussian spectrum)."""
 
     shape: Literal["rough_floor"] = "rough_floor"
-    depth_m: Real = 30.0
-    center_m: tuple[Real, Real] = (0.0, 0.0)
-    size_m: tuple[PositiveReal, PositiveReal] = (60.0, 60.0)
-    resolution_m: PositiveReal = 0.25
-    rms_height_m: NonNegativeReal = 0.05
-    correlation_length_m: PositiveReal = 1.0
-    slope: tuple[Real, Real] = (0.0, 0.0)
+    depth_m: Coordinate = 30.0
+    center_m: tuple[Coordinate, Coordinate] = (0.0, 0.0)
+    size_m: tuple[Size, Size] = (60.0, 60.0)
+    resolution_m: Resolution = 0.25
+    rms_height_m: NonNegativeReal = Field(0.05, le=100.0)
+    correlation_length_m: Bounded(1e-3, MAX_EXTENT_M, positive=True) = 1.0
+    """At most half the floor's smaller side (a longer one is a tilt, not a roughness: the
+    field's spectrum would hold nothing the grid can show)."""
+    slope: tuple[Bounded(-100.0, 100.0), Bounded(-100.0, 100.0)] = (0.0, 0.0)
     """dz/dx and dz/dy."""
     seed: Count = 0
     """Added to the scene's seed: the floor is the same for every ping."""
+
+    @model_validator(mode="after")
+    def _correlation_fits(self):
+        half = min(self.size_m) / 2
+        if self.rms_height_m > 0 and self.correlation_length_m > half:
+            raise ValueError(f"correlation_length_m {self.correlation_length_m:g} m exceeds half "
+                             f"the floor's smaller side ({half:g} m): at most {half:g} m, or a "
+                             f"larger size_m")
+        return self
 
 
 class HeightGridShape(_Shape):
@@ -72,24 +133,25 @@ class HeightGridShape(_Shape):
 
     shape: Literal["height_grid"] = "height_grid"
     file: str
-    spacing_m: tuple[PositiveReal, PositiveReal]
-    origin_m: tuple[Real, Real] = (0.0, 0.0)
+    spacing_m: tuple[Resolution, Resolution]
+    origin_m: tuple[Coordinate, Coordinate] = (0.0, 0.0)
 
 
 class _MovingSea(_Shape):
     """A sea surface that moves between pings (acoustics/paths/sea_surface.py): a height field in
     the world frame, z = mean_level_m − η(x, y, t), t = time_offset_s + the ping's time."""
 
-    center_m: tuple[Real, Real] = (0.0, 0.0)
-    size_m: tuple[PositiveReal, PositiveReal] = (60.0, 60.0)
-    resolution_m: PositiveReal = 0.25
+    center_m: tuple[Coordinate, Coordinate] = (0.0, 0.0)
+    size_m: tuple[Size, Size] = (60.0, 60.0)
+    resolution_m: Bounded(0.01, 1e3, positive=True) = 0.25
     """Grid step: the mesh resolution, an accuracy knob (docs/accuracy.md)."""
-    mean_level_m: Real = 0.0
-    """z of the still surface (world frame, z down)."""
-    water_depth_m: PositiveReal | None = None
+    mean_level_m: Coordinate = 0.0
+    """z of the still surface (world frame, z down); the sonar and every target must stay below
+    the moving surface at every ping."""
+    water_depth_m: Bounded(0.1, 12000.0, positive=True) | None = None
     """Depth for the dispersion relation ω² = g k tanh(k d); null: deep water."""
-    time_offset_s: Real = 0.0
-    """The sea's time at the first ping."""
+    time_offset_s: Real = Field(0.0, ge=-1e9, le=1e9)
+    """The sea's time at ping 0 (ping p shows the sea at time_offset_s + p x pings.interval_s)."""
 
 
 class WindSeaShape(_MovingSea):
@@ -99,36 +161,59 @@ class WindSeaShape(_MovingSea):
     shape: Literal["wind_sea"] = "wind_sea"
     wind_speed_m_s: PositiveReal = Field(10.0, le=40.0)
     """U10, the wind speed 10 m above the sea."""
-    direction_deg: Real = 0.0
+    direction_deg: Degrees = 0.0
     """Direction the waves travel to, from the world x axis towards y."""
-    fetch_km: PositiveReal | None = None
-    """Fetch for JONSWAP; null: the fully developed sea (Pierson–Moskowitz)."""
-    spreading: PositiveReal = 10.0
+    fetch_km: Bounded(0.01, 10000.0, positive=True) | None = None
+    """Fetch for JONSWAP (10 m to 10 000 km); null: the fully developed sea (Pierson–Moskowitz)."""
+    spreading: PositiveReal = Field(10.0, le=1000.0)
     """s of the cos^2s(Δθ/2) directional spreading (larger: longer crests)."""
     seed: Count = 0
     """Added to the scene's seed: the same sea at every ping and on every worker."""
 
 
 class SwellWave(ConfigModel):
-    amplitude_m: NonNegativeReal
-    wavelength_m: PositiveReal
-    direction_deg: Real = 0.0
+    amplitude_m: NonNegativeReal = Field(le=30.0)
+    """Half the crest-to-trough height (m), at most 30 m and at most λ/14: a wave steeper than
+    height/λ = 1/7 breaks."""
+    wavelength_m: Bounded(0.02, MAX_EXTENT_M, positive=True)
+    """2 cm (shorter ripples are capillary, not gravity waves) to 100 km."""
+    direction_deg: Degrees = 0.0
     """Direction of travel, from the world x axis towards y."""
-    phase_deg: Real = 0.0
+    phase_deg: Degrees = 0.0
     """Phase of the crest at x = y = 0, t = 0 (0: a crest there)."""
+
+    @model_validator(mode="after")
+    def _not_breaking(self):
+        steepness = 2 * self.amplitude_m / self.wavelength_m
+        if steepness > BREAKING_STEEPNESS:
+            raise ValueError(f"amplitude_m {self.amplitude_m:g} m on a {self.wavelength_m:g}-m wave "
+                             f"is a height/wavelength of {steepness:.3g}: waves break beyond 1/7, "
+                             f"so amplitude_m is at most wavelength_m/14 = "
+                             f"{self.wavelength_m * BREAKING_STEEPNESS / 2:.4g} m")
+        return self
 
 
 class SwellShape(_MovingSea):
     """A swell: one or a few travelling sinusoids (amplitude, wavelength, direction, phase)."""
 
     shape: Literal["swell"] = "swell"
-    waves: tuple[SwellWave, ...] = Field(min_length=1, max_length=64)
+    waves: tuple[SwellWave, ...] = Field(json_schema_extra={"minItems": 1, "maxItems": 64})
+    """One to 64 waves."""
+
+    @field_validator("waves")
+    @classmethod
+    def _some_waves(cls, v):
+        # checked here rather than as the tuple's length bounds, which pydantic would also report
+        # (as "at least 1 item") for a list whose one wave has a bad value
+        if not 1 <= len(v) <= 64:
+            raise ValueError(f"give 1 to 64 waves, not {len(v)}")
+        return v
 
 
 class SphereShape(_Shape):
     shape: Literal["sphere"] = "sphere"
-    center_m: Vec3 = (0.0, 0.0, 0.0)
-    radius_m: PositiveReal
+    center_m: Position3 = (0.0, 0.0, 0.0)
+    radius_m: Size
     subdivisions: PositiveCount = Field(4, le=8)
     """Icosphere subdivisions: 4 -> 5120 faces, 5 -> 20480, 6 -> 81920."""
 
@@ -137,15 +222,15 @@ class SpheroidShape(_Shape):
     """An ellipsoid with semi-axes along x, y, z (rotate it with ``transform``)."""
 
     shape: Literal["spheroid"] = "spheroid"
-    center_m: Vec3 = (0.0, 0.0, 0.0)
-    semi_axes_m: tuple[PositiveReal, PositiveReal, PositiveReal]
+    center_m: Position3 = (0.0, 0.0, 0.0)
+    semi_axes_m: tuple[Size, Size, Size]
     subdivisions: PositiveCount = Field(4, le=8)
 
 
 class BoxShape(_Shape):
     shape: Literal["box"] = "box"
-    center_m: Vec3 = (0.0, 0.0, 0.0)
-    size_m: tuple[PositiveReal, PositiveReal, PositiveReal]
+    center_m: Position3 = (0.0, 0.0, 0.0)
+    size_m: tuple[Size, Size, Size]
 
 
 class FileShape(_Shape):
@@ -180,7 +265,7 @@ class Lambert(ConfigModel):
     """Lambert's law: s_b = μ sin² θ_g per unit area (θ_g the grazing angle), μ in dB."""
 
     law: Literal["lambert"] = "lambert"
-    mu_db: Real = Field(-27.0, le=0)
+    mu_db: Real = Field(-27.0, ge=-150.0, le=0)
     """Lambert parameter 10 log10 μ (sand about −27 dB, mud −35 dB, rock −17 dB)."""
 
 
@@ -195,9 +280,9 @@ class RayleighReflection(ConfigModel):
     """Rayleigh's plane-wave coefficient of a fluid half-space (complex beyond critical)."""
 
     model: Literal["rayleigh"] = "rayleigh"
-    density_kg_m3: PositiveReal = 1900.0
-    sound_speed_m_s: PositiveReal = 1700.0
-    water_density_kg_m3: PositiveReal = 1027.0
+    density_kg_m3: Bounded(1.0, 30000.0, positive=True) = 1900.0
+    sound_speed_m_s: Bounded(100.0, 20000.0, positive=True) = 1700.0
+    water_density_kg_m3: Bounded(900.0, 1100.0, positive=True) = 1027.0
 
 
 Reflection = Annotated[Union[Annotated[ConstantReflection, Tag("constant")],
@@ -273,7 +358,7 @@ class ReverberationSpec(ConfigModel):
     refresh_phase: bool = False
     """Draw the facets' random phases anew each ping (a moving surface); false: frozen, as for
     static geometry."""
-    max_range_m: PositiveReal | None = None
+    max_range_m: PositiveReal | None = Field(None, le=MAX_EXTENT_M)
     """Ignore hits beyond this range; default the end of the record."""
 
 

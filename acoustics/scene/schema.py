@@ -19,7 +19,7 @@ import numpy as np
 from pydantic import Field, PrivateAttr, model_validator
 
 from acoustics.medium import francois_garrison_db_per_m, mackenzie_sound_speed_m_s
-from acoustics.scene.meshes_spec import BoundarySpec, ReverberationSpec, SpecularSpec
+from acoustics.scene.meshes_spec import Bounded, BoundarySpec, ReverberationSpec, SpecularSpec
 from acoustics.scene.sonar_spec import SonarSpec
 from acoustics.scene.targets_spec import TargetsSpec
 from acoustics.sonar import preset
@@ -69,7 +69,7 @@ class AdcSpec(ConfigModel):
 class SamplingSpec(ConfigModel):
     """Complex baseband sampling (Table 3.4). t = 0 is the start of transmission."""
 
-    rate_hz: PositiveReal = Field(preset.SAMPLE_RATE_HZ, le=100e6)
+    rate_hz: Bounded(100.0, 100e6, positive=True) = preset.SAMPLE_RATE_HZ
     samples: PositiveCount = Field(preset.SAMPLES_PER_PING, le=2**22)
     time_offset_s: NonNegativeReal = Field(0.0, le=100.0)
     """Time (s) of sample 0 after the start of transmission."""
@@ -182,7 +182,7 @@ class EffectsSpec(ConfigModel):
     Doppler shift 2 v_r f0 / c (a multipath path: −f0/c times the rate its length changes, a
     moving sea's included): with the LFM pulse's range–Doppler coupling a closing speed of
     0.5 m/s biases the range by 7 cm, 2 m/s by 29 cm (docs/accuracy.md, "within-ping motion")."""
-    doppler_bin_hz: PositiveReal = Field(5.0, le=1000.0)
+    doppler_bin_hz: Bounded(0.01, 1000.0, positive=True) = 5.0
     """Doppler grid of the fast synthesis (Hz), an accuracy knob (docs/accuracy.md)."""
     stop_and_hop: bool = True
     """A moving platform hears each echo from the pose it had when it transmitted (the
@@ -218,6 +218,7 @@ class Scene(ConfigModel):
 
     _source_path: Path | None = PrivateAttr(default=None)
     _resolved_text: str | None = PrivateAttr(default=None)
+    _physics_notes: tuple = PrivateAttr(default=())
 
     @model_validator(mode="before")
     @classmethod
@@ -314,7 +315,9 @@ class Scene(ConfigModel):
         except ConfigError as exc:
             raise SceneError(str(exc), exc.problems) from None
         scene._source_path = None if source_path is None else Path(source_path)
-        problems = physical_problems(scene)
+        notes: list = []
+        problems = physical_problems(scene, notes=notes)
+        scene._physics_notes = tuple(notes)
         if problems:
             from acoustics.scene.errors import key_tuple
             lines = []
@@ -362,6 +365,13 @@ class Scene(ConfigModel):
                 raise SceneError(f"{what}: {path!r} is not a key of the scene") from None
         return Scene.validated(data, file=f"{self.source_path or '<scene>'} ({what})",
                                source_path=self.source_path)
+
+    @property
+    def physics_notes(self) -> tuple:
+        """(message, key path) pairs of what the physical checks could not settle when the scene
+        was validated (e.g. a run too long for the per-ping check under a moving sea):
+        :func:`acoustics.scene.checks.cross_check` warns of them."""
+        return self._physics_notes
 
     @property
     def source_path(self) -> Path | None:

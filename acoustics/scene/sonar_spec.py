@@ -7,10 +7,19 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
+from acoustics.scene.meshes_spec import Bounded, Direction3, Position3
 from acoustics.scene.motion_spec import PlatformMotionSpec
 from acoustics.sonar import preset
 from acoustics.sonar.arrays import ElementArray
-from processing.base.config import AngleDeg, ConfigModel, Count, PositiveCount, PositiveReal, Real, Vec3
+from processing.base.config import AngleDeg, ConfigModel, Count, PositiveCount, Real
+
+#: a position (m) on the sonar's mount, within ±100 m of its origin
+_MountCoordinate = Bounded(-100.0, 100.0)
+_MountPosition = tuple[_MountCoordinate, _MountCoordinate, _MountCoordinate]
+#: the size (m) of an element or an element pitch: 10 µm to 10 m
+_ElementSize = Bounded(1e-5, 10.0, positive=True)
+#: an offset (m) of the preset's geometry, within ±10 m
+_Offset = Bounded(-10.0, 10.0)
 
 __all__ = ["PoseSpec", "ElementSpec", "LineSpec", "ArraySpec", "ReceiverSpec", "PresetGeometry",
            "LevelsSpec", "SonarSpec"]
@@ -21,11 +30,11 @@ class PoseSpec(ConfigModel):
     z down). The default looks straight down from the surface with the receiver axis
     (azimuth) athwartships to starboard, as a hull-mounted counting sonar."""
 
-    position_m: Vec3 = (0.0, 0.0, 0.0)
+    position_m: Position3 = (0.0, 0.0, 0.0)
     """World position (m) of the sonar-frame origin (the transmitter's phase centre)."""
-    boresight: Vec3 = (0.0, 0.0, 1.0)
+    boresight: Direction3 = (0.0, 0.0, 1.0)
     """World direction of the boresight +z_s (normalised on load)."""
-    receiver_axis: Vec3 = (0.0, 1.0, 0.0)
+    receiver_axis: Direction3 = (0.0, 1.0, 0.0)
     """World direction of +x_s, along the receiver subarrays (positive azimuth)."""
 
     @model_validator(mode="after")
@@ -43,15 +52,15 @@ class PoseSpec(ConfigModel):
 class ElementSpec(ConfigModel):
     """One rectangular piston element, facing +z_s."""
 
-    center_m: Vec3
+    center_m: _MountPosition
     """Centre (m) in the sonar frame."""
-    width_m: PositiveReal
+    width_m: _ElementSize
     """Size (m) along the element's local x."""
-    height_m: PositiveReal
+    height_m: _ElementSize
     """Size (m) along the element's local y."""
     rotation: AngleDeg(-360, 360) = Field(0.0, alias="rotation_deg")
     """In-plane rotation (deg) of local x from +x towards +y."""
-    weight: Real = 1.0
+    weight: Real = Field(1.0, ge=-1e3, le=1e3)
     """Amplitude weight."""
 
 
@@ -59,14 +68,14 @@ class LineSpec(ConfigModel):
     """A regular line of identical elements (a compact way to write an array)."""
 
     count: PositiveCount
-    pitch_m: PositiveReal
+    pitch_m: _ElementSize
     axis: Literal["x", "y"]
     """Direction of the line in the sonar frame."""
-    width_m: PositiveReal
-    height_m: PositiveReal
-    center_m: Vec3 = (0.0, 0.0, 0.0)
+    width_m: _ElementSize
+    height_m: _ElementSize
+    center_m: _MountPosition = (0.0, 0.0, 0.0)
     rotation: AngleDeg(-360, 360) = Field(0.0, alias="rotation_deg")
-    stagger_m: Real = 0.0
+    stagger_m: _Offset = 0.0
     """Alternate ±offset (m) across the line, in the array plane (first element +)."""
 
 
@@ -131,15 +140,15 @@ class PresetGeometry(ConfigModel):
     """Dimensions the ABACUS preset leaves adjustable (defaults depend on ``variant``;
     docs/arrays.md explains each choice)."""
 
-    transmitter_stagger_m: Real
+    transmitter_stagger_m: _Offset
     """Transmitter elements shifted alternately ±this along x (abacus 0.0015, generic 0)."""
     transmitter_rotated_end_elements: Count = Field(le=8)
     """Elements rotated 90° at each end of the transmitter (abacus 3, generic 0)."""
-    receiver_stagger_m: Real
+    receiver_stagger_m: _Offset
     """Receiver elements shifted alternately ±this along y (abacus 0.002, generic 0)."""
-    subarray_b_offset_m: Real
+    subarray_b_offset_m: _Offset
     """Shift of subarray B relative to A along x (abacus 0.0075 = d/2, generic 0)."""
-    baseline_m: PositiveReal = preset.BASELINE_M
+    baseline_m: _ElementSize = preset.BASELINE_M
     """Separation of subarrays A and B along y."""
 
 

@@ -7,15 +7,18 @@ from typing import Annotated, Literal, Union
 import numpy as np
 from pydantic import Discriminator, Field, Tag, model_validator
 
-from acoustics.scene.meshes_spec import MeshTargetSpec
+from acoustics.scene.meshes_spec import (MAX_EXTENT_M, Bounded, Coordinate, MeshTargetSpec, Position3,
+                                         Size)
 from acoustics.scene.motion_spec import SwimSpec
 from processing.base.config import (AngleDeg, AngleRangeDeg, ConfigModel, Count, NonNegativeReal,
-                               PositiveReal, Real, Vec3)
+                               PositiveReal, Real)
 
 __all__ = ["UnitTS", "FixedTS", "RayleighTS", "SwimbladderTS", "Backscatter", "PointTarget", "CuboidPopulation",
            "SectorPopulation", "SchoolPopulation", "Population", "TargetsSpec", "Interval"]
 
-Interval = tuple[Real, Real]
+Interval = tuple[Coordinate, Coordinate]
+#: a velocity component (m/s), within ±100 m/s
+Speed = Bounded(-100.0, 100.0)
 
 
 class UnitTS(ConfigModel):
@@ -36,15 +39,21 @@ class RayleighTS(ConfigModel):
     from the Rayleigh law of scale ``scale_m`` truncated to [lo, hi] (inverse CDF)."""
 
     model: Literal["rayleigh"] = "rayleigh"
-    scale_m: PositiveReal = 0.5
+    scale_m: Bounded(1e-6, 100.0, positive=True) = 0.5
     """Rayleigh scale (m); the untruncated mean is scale·√(π/2)."""
-    lo_m: NonNegativeReal = 0.25
-    hi_m: PositiveReal = 1.25
+    lo_m: NonNegativeReal = Field(0.25, le=1000.0)
+    """At most 6 x scale_m: beyond it the law holds less than 1e-7 of its draws."""
+    hi_m: PositiveReal = Field(1.25, le=1000.0)
 
     @model_validator(mode="after")
     def _bounds(self):
         if not self.lo_m < self.hi_m:
             raise ValueError("lo_m must be below hi_m")
+        if self.lo_m > 6 * self.scale_m:
+            # F(lo) = 1 - exp(-lo²/2s²) rounds to 1: the truncated law cannot be drawn
+            raise ValueError(f"lo_m {self.lo_m:g} m is more than 6 x scale_m ({6 * self.scale_m:g} m): "
+                             f"the Rayleigh law has (almost) nothing there to draw; lower lo_m or "
+                             f"raise scale_m")
         return self
 
 
@@ -89,11 +98,11 @@ class PointTarget(ConfigModel):
     Cartesian position in the sonar or world frame."""
 
     frame: Literal["sonar", "world"] = "sonar"
-    range_m: PositiveReal | None = None
+    range_m: PositiveReal | None = Field(None, le=MAX_EXTENT_M)
     azimuth: AngleDeg(-180, 180) | None = Field(None, alias="azimuth_deg")
     elevation: AngleDeg(-90, 90) | None = Field(None, alias="elevation_deg")
-    position_m: Vec3 | None = None
-    velocity_m_s: Vec3 | None = None
+    position_m: Position3 | None = None
+    velocity_m_s: tuple[Speed, Speed, Speed] | None = None
     """World-frame velocity (m/s): the target starts where it is at ping 0 and moves in a straight
     line. Without it a sonar-frame target stays put relative to the sonar, a world-frame one in
     the world."""
@@ -191,9 +200,9 @@ class SchoolPopulation(_Population):
     school's fish swim (its default heading is the school's)."""
 
     kind: Literal["school"] = "school"
-    center_m: Vec3
+    center_m: Position3
     """Centre (m), world frame (z is depth)."""
-    semi_axes_m: tuple[PositiveReal, PositiveReal, PositiveReal]
+    semi_axes_m: tuple[Size, Size, Size]
     """Semi-axes (m): along the heading, across it (horizontal), vertical."""
     heading: AngleDeg(-360, 360) = Field(0.0, alias="heading_deg")
     nearest_neighbour_m: NonNegativeReal = Field(0.0, le=100.0)
