@@ -14,6 +14,9 @@ def add_parser(sub):
     c.add_argument("--json", action="store_true", help="print one JSON object: per-track rows and summary")
     c.add_argument("--csv", metavar="FILE", help="write one row per track as CSV")
     c.add_argument("--plots", metavar="DIR", help="tracks in 3-D and from above and the side; TS along tracks")
+    c.add_argument("--mot", metavar="DIR",
+                   help="write the tracks (DIR/tracks.txt) and the truth (DIR/gt.txt) as MOTChallenge 3-D "
+                        "text files: frame,id,-1,-1,-1,-1,conf,x,y,z (docs/validation.md)")
     add_output_options(c)
     c.set_defaults(func=command)
 
@@ -46,13 +49,55 @@ def _check_ping_times(tree, source: str) -> None:
                            f"not come after ping {i - 1} ({t[i - 1]}); tracking needs pings in time order")
 
 
+def write_mot_files(tree, folder) -> list:
+    """Write the tracks and the truth of a tracked dataset as MOTChallenge 3-D text files.
+
+    ``folder/tracks.txt``: one line per track point, ``folder/gt.txt`` (when the dataset has
+    ground truth): one line per true fish per ping of the record; each line
+    ``frame,id,-1,-1,-1,-1,conf,x,y,z`` with frame = ping index + 1, id = track number + 1 or
+    ``target_id`` + 1, conf = 1 inside the counting volume and 0 outside (the truth: all 1
+    when it does not say), x, y, z the world position (m)
+    (:func:`processing.tracking.hota.write_mot`).
+
+    Returns
+    -------
+    list of Path
+        The files written.
+    """
+    from pathlib import Path
+
+    import numpy as np
+
+    from processing.base.contract import ELEMENT_GROUP, TRUTH_GROUP
+    from processing.base.dataset import group_of, ping_indices
+    from processing.tracking.hota import write_mot
+    from processing.tracking.tracks import tracks_of
+    folder = Path(folder)
+    ds = tracks_of(tree)
+    written = [write_mot(folder / "tracks.txt", ds["point_ping_index"].values.astype(int) + 1,
+                         ds["point_track"].values.astype(int) + 1,
+                         np.stack([ds[f"point_world_{a}"].values for a in "xyz"], -1),
+                         ds["point_in_volume"].values.astype(int))]
+    gt = group_of(tree, TRUTH_GROUP)
+    if gt is not None and "target_id" in gt:
+        pings = gt["target_ping_index"].values.astype(int)
+        keep = np.isin(pings, ping_indices(tree[ELEMENT_GROUP].ds))
+        conf = (gt["target_in_counting_volume"].values.astype(int) if "target_in_counting_volume" in gt
+                else np.ones(pings.size, int))
+        written.append(write_mot(folder / "gt.txt", pings[keep] + 1, gt["target_id"].values.astype(int)[keep] + 1,
+                                 np.stack([gt[f"target_world_{a}"].values for a in "xyz"], -1)[keep],
+                                 conf[keep]))
+    return written
+
+
 def command(args) -> int:
     import processing
     from processing.base.atomic import staged_set
     from processing.base.dataset import open_tree
     from processing.tracking.tracks import format_tracks, track_summary, write_tracks_csv, strict_json
-    out, csv, plots = check_outputs(
-        args, [("-o", args.output, False), ("--csv", args.csv, False), ("--plots", args.plots, True)],
+    out, csv, plots, mot = check_outputs(
+        args, [("-o", args.output, False), ("--csv", args.csv, False), ("--plots", args.plots, True),
+               ("--mot", args.mot, True)],
         inputs=[args.input, args.settings])
     tree = open_tree(args.input, max_memory_gb=args.max_memory, work_factor=3.0)
     _check_ping_times(tree, str(args.input))
@@ -72,11 +117,16 @@ def command(args) -> int:
             tmp = outputs.path(plots)
             tmp.mkdir()
             track_figures(tree, tmp)
+        if mot is not None:
+            tmp = outputs.path(mot)
+            tmp.mkdir()
+            write_mot_files(tree, tmp)
     if args.json:
         print(strict_json(result))
     else:
         print(format_tracks(result))
-        for what, where in (("dataset", args.output), ("tracks CSV", args.csv), ("plots", args.plots)):
+        for what, where in (("dataset", args.output), ("tracks CSV", args.csv), ("plots", args.plots),
+                            ("MOTChallenge files", args.mot)):
             if where:
                 print(f"wrote {what}: {where}")
     return 0

@@ -11,8 +11,13 @@ Beside those, per track: the true fish it follows (the identity of the nearest t
 ``max_distance_m`` at most of its detected pings), its speed error (track speed − that fish's mean
 speed over the track's pings) and TS error (track TS − the fish's mean σ_bs over the pings whose
 detection was compensated, both in dB); and the run's true number of fish that passed through the
-counting volume (distinct identities ever inside it). HOTA is not in motmetrics; it is left out
-rather than hand-written.
+counting volume (distinct identities ever inside it).
+
+HOTA with its detection, association and localisation parts (DetA, AssA, LocA; Luiten et al.
+2021) is not in motmetrics: processing/tracking/hota.py computes it (pure numpy/scipy, checked
+against the reference implementation TrackEval in tests/test_hota.py) on the same points, with
+the 3-D localisation similarity ``S = max(0, 1 − d / max_distance_m)``; nMAE of the run's track
+count (|track count − true passages| / true passages; Kay et al. 2022) beside it.
 
 py-motmetrics is the optional extra ``metrics``: without it, scoring raises
 :class:`processing.base.extras.MissingExtra`, which names the extra.
@@ -54,6 +59,27 @@ def _mot(ds, truth, volume_inside_truth, max_distance_m, row_of_ping_index):
     return {k: float(summary[k].iloc[0]) for k in MOT_METRICS}
 
 
+def _hota(ds, truth, volume_inside_truth, max_distance_m, row_of_ping_index):
+    """HOTA, DetA, AssA, LocA of the track points inside the counting volume against the true
+    fish inside it, one frame per ping (:func:`processing.tracking.hota.hota`)."""
+    from processing.tracking.hota import hota, localisation_similarity
+    tp = truth["target_ping_index"].astype(int)
+    t_ids = truth["target_id"].astype(int)
+    t_xyz = np.stack([truth[f"target_world_{a}"] for a in "xyz"], -1)
+    pts_ping = ds["point_ping_index"].values.astype(int)
+    pts_in = ds["point_in_volume"].values.astype(bool)
+    pts_xyz = np.stack([ds[f"point_world_{a}"].values for a in "xyz"], -1)
+    pts_track = ds["point_track"].values.astype(int)
+    gt_ids, tr_ids, sims = [], [], []
+    for p in sorted(row_of_ping_index):
+        o = np.flatnonzero((tp == p) & volume_inside_truth)
+        h = np.flatnonzero((pts_ping == p) & pts_in)
+        gt_ids.append(t_ids[o])
+        tr_ids.append(pts_track[h])
+        sims.append(localisation_similarity(t_xyz[o], pts_xyz[h], max_distance_m))
+    return hota(gt_ids, tr_ids, sims).summary()
+
+
 def score_tracks(ds: xr.Dataset, truth: dict, *, volume, to_sonar, row_of_ping_index: dict,
                  max_distance_m: float) -> xr.Dataset:
     """Add the scores against the truth to a tracks dataset.
@@ -78,9 +104,12 @@ def score_tracks(ds: xr.Dataset, truth: dict, *, volume, to_sonar, row_of_ping_i
     xarray.Dataset
         ``ds`` with per-track ``track_true_id`` (−1: follows no fish), ``track_speed_error``
         (m/s), ``track_ts_error`` (dB), and attributes ``true_passages`` (fish that passed
-        through the counting volume), ``track_count_error``, the MOT metrics (``mota``,
-        ``motp`` (m), ``idf1``, ...), and the mean and standard deviation of the speed and TS
-        errors over the tracks that follow a fish.
+        through the counting volume), ``track_count_error``, ``count_nmae`` (|track count
+        error| / true passages, NaN without a passage), the MOT metrics (``mota``, ``motp``
+        (m), ``idf1``, ...), HOTA and its parts (``hota``, ``deta``, ``assa``, ``loca``: means
+        over the localisation thresholds α = 0.05…0.95 with the similarity
+        ``max(0, 1 − d / max_distance_m)``; processing/tracking/hota.py), and the mean and
+        standard deviation of the speed and TS errors over the tracks that follow a fish.
     """
     tp = truth["target_ping_index"].astype(int)
     known = np.array([p in row_of_ping_index for p in tp], bool)
@@ -91,6 +120,7 @@ def score_tracks(ds: xr.Dataset, truth: dict, *, volume, to_sonar, row_of_ping_i
         rows = np.array([row_of_ping_index.get(int(p), 0) for p in tp], int)
         inside = volume.contains(to_sonar(rows, t_xyz)) & known
     scores = _mot(ds, truth, inside, max_distance_m, row_of_ping_index)
+    scores.update(_hota(ds, truth, inside, max_distance_m, row_of_ping_index))
     true_passages = int(np.unique(truth["target_id"][inside]).size)
     speed_true = np.linalg.norm(np.stack([truth[f"target_velocity_world_{a}"] for a in "xyz"], -1), axis=1)
     n_tr = ds.sizes["track"]
@@ -134,8 +164,10 @@ def score_tracks(ds: xr.Dataset, truth: dict, *, volume, to_sonar, row_of_ping_i
     out["track_ts_error"].attrs.update(units="dB", nan_means="no true fish, or no compensated TS")
     follows = true_id >= 0
     attrs = dict(scores)
+    from processing.tracking.hota import nmae
     attrs.update(true_passages=true_passages,
                  track_count_error=int(ds.attrs["track_count"]) - true_passages,
+                 count_nmae=nmae(int(ds.attrs["track_count"]), true_passages),
                  tracks_following_a_fish=int(follows.sum()))
     for name, v in (("speed_error", speed_err), ("ts_error", ts_err)):
         v = v[np.isfinite(v)]

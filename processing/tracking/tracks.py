@@ -331,7 +331,11 @@ def track_summary(tree: xr.DataTree) -> dict:
         world +x), in the counting volume, and with truth the fish it follows and its errors);
         ``summary``: track count (passages through the counting volume), track density (m⁻³),
         the per-ping count's mean next to it when /Processing/Counts exists, and with truth the
-        true passages and the tracking scores.
+        tracking scores: ``true_passages`` and ``counted_passages`` (the run's true and counted
+        passages, what an nMAE over runs sums: Σ|counted − true| / Σ true), ``nmae`` (this
+        run's |counted − true| / true), MOTA, MOTP, IDF1 and the others of py-motmetrics, and
+        ``hota``, ``deta``, ``assa``, ``loca`` (processing/tracking/hota.py). A score without a
+        value (NaN) is None.
     """
     ds = tracks_of(tree)
     a = ds.attrs
@@ -348,11 +352,14 @@ def track_summary(tree: xr.DataTree) -> dict:
             s["true_density_per_m3"] = _nanmean(c["true_density_per_m3"].values)
     for k in ("true_passages", "track_count_error", "tracks_following_a_fish", "mota", "motp", "idf1",
               "num_switches", "num_fragmentations", "mostly_tracked", "num_false_positives",
-              "num_misses", "num_unique_objects", "speed_error_mean", "speed_error_sd",
-              "ts_error_mean", "ts_error_sd"):
+              "num_misses", "num_unique_objects", "hota", "deta", "assa", "loca", "speed_error_mean",
+              "speed_error_sd", "ts_error_mean", "ts_error_sd"):
         if k in a:
             v = float(a[k])
             s[k] = None if not np.isfinite(v) else (int(v) if k in _INTEGER_SCORES else v)
+    if "true_passages" in a:
+        s["counted_passages"] = s["track_count"]
+        s["nmae"] = _finite(a["count_nmae"]) if "count_nmae" in a else None
     return _no_nan({"tracks": _per_track(ds), "summary": s})
 
 
@@ -392,6 +399,10 @@ def format_tracks(result: dict) -> str:
                      f"{f(s.get('track_count_error'), '+d')}); IDF1 {f(s['idf1'], '.3f')}, MOTA {f(s['mota'], '.3f')}, "
                      f"MOTP {f(s['motp'], '.3f')} m, {f(s.get('num_switches'), 'd')} ID switch(es), "
                      f"{f(s.get('num_fragmentations'), 'd')} fragmentation(s)")
+        lines.append(f"HOTA {f(s.get('hota'), '.3f')} (DetA {f(s.get('deta'), '.3f')}, AssA "
+                     f"{f(s.get('assa'), '.3f')}, LocA {f(s.get('loca'), '.3f')}); count nMAE "
+                     f"{f(s.get('nmae'), '.3f')} ({f(s.get('counted_passages'), 'd')} counted for "
+                     f"{f(s.get('true_passages'), 'd')} true passages)")
         lines.append(f"per-track errors: speed {f(s['speed_error_mean'], '+.3f')} ± {f(s['speed_error_sd'], '.3f')} "
                      f"m/s, TS {f(s['ts_error_mean'], '+.2f')} ± {f(s['ts_error_sd'], '.2f')} dB")
     return "\n".join(lines)
