@@ -529,22 +529,22 @@ MOTION = "sonar: {motion: {kind: file, file: m.csv}}\npings: {interval_s: 0.5}\n
 GOOD_MOTION = "time_s,roll_deg,pitch_deg,heave_m\n0,0,0,0\n1,2,1,0.2\n2,0,-1,0\n"
 #: a swell over the probe's targets (surface at z = 0, the sonar at 5 m depth)
 SWELL = """\
-sonar: {{pose: {{position_m: [0, 0, 5], boresight: [1, 0, 0], receiver_axis: [0, 1, 0]}}}}
+sonar: {{pose: {{position_m: [0, 0, {depth}], boresight: [1, 0, 0], receiver_axis: [0, 1, 0]}}}}
 targets:
   points:
     - {{frame: world, position_m: [{x}, 0, {z}]}}
 boundaries:
   - name: sea
     role: surface
-    mesh: {{shape: swell, center_m: [15, 0], size_m: [40, 16], resolution_m: {res},
+    mesh: {{shape: swell, center_m: [15, 0], size_m: [{length}, 16], resolution_m: {res},
             waves: [{{amplitude_m: {amp}, wavelength_m: {wl}}}]}}
 pings: {{count: {pings}, interval_s: 0.25}}
 effects: {{multipath_order: 1}}
 """
 
 
-def _swell(x=17.0, z=2.0, amp=0.5, wl=25.0, res=0.5, pings=4):
-    return scene(SWELL.format(x=x, z=z, amp=amp, wl=wl, res=res, pings=pings))
+def _swell(x=17.0, z=2.0, amp=0.5, wl=25.0, res=0.5, pings=4, depth=5.0, length="40"):
+    return scene(SWELL.format(x=x, z=z, amp=amp, wl=wl, res=res, pings=pings, depth=depth, length=length))
 
 
 def _mat(kind: str):
@@ -654,7 +654,7 @@ def _issue27_probes(add):
     add("checked_values", "swell resolution 1e-300 m", ["scene", "check", "s.yaml"],
         files={"s.yaml": _swell(res=1e-300)}, says=("resolution_m",))
     add("checked_values", "swell size 1e300 m", ["scene", "check", "s.yaml"],
-        files={"s.yaml": _swell().replace("size_m:\n", "size_m:\n").replace("[40, 16]", "[1.0e+300, 16]")})
+        files={"s.yaml": _swell(length="1.0e+300")}, says=("size_m",))
     add("checked_values", "a flat OBJ as a mesh target", ["simulate", "s.yaml", "-o", "s.nc"],
         files={"s.yaml": scene("targets:\n  meshes:\n    - {name: plate, frame: sonar, mesh: {shape: file, "
                                "file: m.obj, transform: {translate_m: [0, 0, 17]}}}\n"),
@@ -666,7 +666,7 @@ def _issue27_probes(add):
     add("out_of_water", "a target in the swell's crests", ["scene", "check", "s.yaml"],
         files={"s.yaml": _swell(z=-0.2)}, says=("targets",))
     add("out_of_water", "the sonar above the surface", ["scene", "check", "s.yaml"],
-        files={"s.yaml": _swell().replace("position_m: [0, 0, 5]", "position_m: [0, 0, -1]")}, says=("sonar",))
+        files={"s.yaml": _swell(depth=-1.0)}, says=("sonar",))
     add("out_of_water", "swell amplitude 1e6 m", ["scene", "check", "s.yaml"],
         files={"s.yaml": _swell(amp=1e6)}, says=("amplitude_m",))
     add("out_of_water", "swell wavelength 1e-300 m", ["scene", "check", "s.yaml"],

@@ -329,8 +329,9 @@ def test_scene_without_meshes_builds_no_ray_scene():
 # --------------------------------------------------------------- mesh targets
 def test_sphere_physical_optics_matches_the_modal_solution():
     """A rigid sphere of a = 19.05 mm at ka ~ 33: the band-averaged PO backscatter over
-    400–440 kHz must equal the exact modal series within 0.5 dB (PO omits only the creeping
-    wave, whose interference ripple averages out over the band: Neubauer 1963)."""
+    400–440 kHz must equal the exact modal series within 0.5 dB (PO lacks the creeping wave and
+    adds a shadow-boundary term of its own; both ripples average out over the band: Neubauer
+    1963, docs/accuracy.md)."""
     a = 0.01905
     mesh = trimesh.creation.icosphere(subdivisions=5, radius=a)
     f = np.linspace(400e3, 440e3, 41)

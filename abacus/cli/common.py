@@ -72,6 +72,10 @@ def ping_list(scene, n: int | None):
         return None
     if n < 1:
         raise UsageError(f"--pings must be >= 1, got {n}")
+    if n > scene.pings.count:
+        # pings the scene's checks have not seen (the sea and the platform at every ping):
+        # the scene with that many pings must pass them too
+        scene.with_updates({"pings.count": n}, what=f"--pings {n}")
     return range(scene.pings.first, scene.pings.first + n)
 
 

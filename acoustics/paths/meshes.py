@@ -486,7 +486,7 @@ def _repair(m, label, allowed: bool):
     if not m.is_winding_consistent:
         if not allowed:
             raise MeshError(f"{label}: inconsistent face winding (normals); set repair: true")
-        trimesh.repair.fix_winding(m)
+        _fix_winding(m)
         notes.append("made the face winding consistent")
     if m.is_watertight and m.volume < 0:
         m.invert()
@@ -530,3 +530,27 @@ def scene_meshes(scene, pose: Pose) -> list[SceneMesh]:
                            place, None, np.nan).at_time(t0)
         out.append(sm)
     return out
+
+
+def _fix_winding(m) -> None:
+    """Make the face winding consistent, in place: each connected patch takes the winding of its
+    first face, walking breadth-first over shared edges; a neighbour that traverses a shared edge
+    in the same direction as the face it is reached from is flipped. (trimesh's
+    ``repair.fix_winding`` does the same through networkx, which abacus does not install.)"""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order, connected_components
+    n = len(m.faces)
+    adj = np.asarray(m.face_adjacency)
+    if adj.size == 0:
+        return
+    g = coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])), shape=(n, n)).tocsr()
+    _, labels = connected_components(g, directed=False)
+    faces = np.asarray(m.faces).copy()
+    for root in np.unique(labels, return_index=True)[1]:
+        order, pred = breadth_first_order(g, int(root), directed=False, return_predecessors=True)
+        for f in order[1:]:
+            a, b = faces[pred[f]], faces[f]
+            edges = {(a[i], a[(i + 1) % 3]) for i in range(3)}
+            if any((b[i], b[(i + 1) % 3]) in edges for i in range(3)):
+                faces[f] = b[::-1]
+    m.faces = faces

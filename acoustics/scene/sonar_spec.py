@@ -67,7 +67,8 @@ class ElementSpec(ConfigModel):
 class LineSpec(ConfigModel):
     """A regular line of identical elements (a compact way to write an array)."""
 
-    count: PositiveCount
+    count: PositiveCount = Field(le=4096)
+    """Elements in the line (at most 4096: ABACUS has 16; every element is a channel)."""
     pitch_m: _ElementSize
     axis: Literal["x", "y"]
     """Direction of the line in the sonar frame."""
