@@ -10,6 +10,7 @@ Layers (docs/architecture.md)::
 
 Public surface (imported on first use, so ``import abacus`` is cheap)::
 
+    run(scene, output=None, *, pings, plots, images, ...) -> RunResult   # what `abacus run` does
     run_experiment(scene, folder, ...) -> Path   # Monte Carlo over pings and sweeps (Dask)
     main(argv) -> int                            # the command line
 """
@@ -21,6 +22,7 @@ __version__ = distribution_version("abacus")
 
 #: public name -> module that defines it
 _API = {
+    "run": "abacus.runs", "RunResult": "abacus.runs",
     "run_experiment": "abacus.experiment",
     "main": "abacus.cli.app",
 }

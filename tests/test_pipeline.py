@@ -290,7 +290,7 @@ def test_run_folder_appears_whole_and_is_never_overwritten_silently(tmp_path):
 
 
 def test_default_run_folder_stays_under_runs_whatever_the_scene_name(tmp_path):
-    from abacus.cli.run import default_run_folder
+    from abacus.runs import default_run_folder
     for name in ("../../x", "/etc/passwd", "..", "a/b\\c", "ok-name_1.2"):
         folder = default_run_folder(name)
         assert folder.parts[0] == "runs" and len(folder.parts) == 2
