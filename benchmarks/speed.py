@@ -297,16 +297,16 @@ def _child(cmd, *, cwd, env=None, tree=False):
     process tree in MB, stdout, CPU s of its process tree).
 
     CPU: user + system time of the command and every descendant it waited for (the figure
-    helper, which waits for its forked copies), from this process' ``RUSAGE_CHILDREN``; unlike
-    wall time it hardly depends on what else the machine runs.
+    workers of ``abacus run``), from this process' ``RUSAGE_CHILDREN``; unlike wall time it
+    hardly depends on what else the machine runs.
 
     Peaks are read from /proc: the process' own high-water mark (VmHWM, exact up to the last
     5 ms) and, with ``tree``, the largest sum of the proportional set sizes (PSS) of it and its
-    descendants (the figure helper and the copies it forks), sampled every 10 ms. PSS, not RSS:
-    a forked copy shares most of its pages with the helper, and summing RSS would count them
-    twice. Reading PSS walks the page tables (≈ 1 ms a process), so timed runs leave ``tree``
-    off. Not ``wait4``'s ru_maxrss: a child started by fork/vfork + exec carries the high-water
-    mark of the process that started it, here this benchmark's.
+    descendants (the figure workers), sampled every 10 ms. PSS, not RSS: pages that processes
+    share (libraries) would be counted once per process. Reading PSS walks the page tables
+    (≈ 1 ms a process), so timed runs leave ``tree`` off. Not ``wait4``'s ru_maxrss: a child
+    started by fork/vfork + exec carries the high-water mark of the process that started it,
+    here this benchmark's.
     """
     import resource
     import subprocess
@@ -362,23 +362,44 @@ def _child(cmd, *, cwd, env=None, tree=False):
     return wall, own[0], max(total[0], own[0]), out, children_cpu_s() - cpu0
 
 
-_API_STAGES = r"""
+#: the public API chain of ``abacus run``'s numbers: ``warm`` times it in a warmed process (best
+#: of two, after one untimed call); ``fresh`` runs it once, from the interpreter's start to its
+#: end, as a user's script does
+_API_CHAIN = r"""
 import json, sys, time, warnings
 warnings.simplefilter("ignore")
 import acoustics, processing
-scene = acoustics.load_scene("default")
-def literal():
-    t = acoustics.simulate(scene); t = processing.image(t); t = processing.detect(t)
-    return processing.count(t)
-def lean():
-    return processing.count(acoustics.simulate(scene))
-out = {}
-lean()                                        # warm: kernels loaded, caches filled
-for name, fn in (("literal", literal), ("lean", lean)):
-    fn()
-    t0 = time.perf_counter(); fn(); out[name] = time.perf_counter() - t0
-print(json.dumps(out))
+scene = acoustics.load_scene(sys.argv[1])
+def chain():
+    tree = acoustics.simulate(scene)
+    tree = processing.image(tree)
+    tree = processing.detect(tree)
+    return processing.count(tree)
+if sys.argv[2] == "fresh":
+    chain()
+else:
+    chain()                                   # warm: kernels loaded, caches filled
+    best = float("inf")
+    for _ in range(2):
+        t0 = time.perf_counter(); chain(); best = min(best, time.perf_counter() - t0)
+    print(json.dumps(best))
 """
+
+#: ``abacus run`` called as ``main(argv)`` by another program: it draws its figures in its own
+#: process (abacus.figures.drawing.Drawing), where the command line uses a pool on a machine
+#: with a second core: what the pool is worth
+_RUN_IN_PROCESS = r"""
+import sys
+from abacus.cli.app import main
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
+"""
+
+#: interleaved rounds of the end-to-end comparison
+E2E_ROUNDS = 5
+
+#: targets of issue 26 ("Performance stays inside stages"), as ratios of wall times
+_TARGETS = {"run --no-plots / API": 1.5, "run / API": 2.0, "API script / run --no-plots": 1.25}
 
 
 def _stage_times(stdout: str) -> dict:
@@ -390,8 +411,8 @@ def _stage_times(stdout: str) -> dict:
 
 @section
 def end_to_end():
-    """`abacus run` and `abacus experiment` end to end vs their physics and processing stages;
-    cold and warm; where the time goes; file sizes and peak memory per command."""
+    """`abacus run` and `abacus experiment` end to end vs the public API chain; cold and warm;
+    where the time goes; file sizes and peak memory per command."""
     import compileall
     import json
     import os
@@ -405,46 +426,55 @@ def end_to_end():
 
     # an installed abacus has its bytecode compiled (pip does it); a checkout on a machine with
     # PYTHONDONTWRITEBYTECODE (this one) would recompile every module on every start
-    for pkg in ("acoustics", "processing"):
+    for pkg in ("abacus", "acoustics", "processing"):
         compileall.compile_dir(ROOT / pkg, quiet=1)
+    scene = str(ROOT / "scenes" / "default.yaml")
     exe = [sys.executable, "-m", "abacus"]
     work = Path(tempfile.mkdtemp(prefix="abacus-e2e-"))
+    (work / "api.py").write_text(_API_CHAIN)
+    (work / "run_in_process.py").write_text(_RUN_IN_PROCESS)
     env = dict(os.environ, ABACUS_CACHE_DIR=str(work / "cache"), MPLBACKEND="Agg")
+    rounds = E2E_ROUNDS
+    load_before = os.getloadavg()[0]
     try:
-        api = {"literal": 1e9, "lean": 1e9}
-
-        def api_stages():
-            r = subprocess.run([sys.executable, "-c", _API_STAGES], capture_output=True, text=True,
-                               env=env, check=True)
-            for k, v in json.loads(r.stdout.strip().splitlines()[-1]).items():
-                api[k] = min(api[k], v)
-
-        def run(tag, *extra, cold=False, pings=None, memory=False):
+        def run(tag, *extra, cold=False, pings=None, memory=False, cmd=None):
             e = dict(env, ABACUS_CACHE_DIR=str(work / f"cold-{tag}")) if cold else env
             out = work / f"out-{tag}"
             shutil.rmtree(out, ignore_errors=True)
             more = ["--pings", str(pings)] if pings else []
-            res = _child(exe + ["run", "default", "-o", str(out), *more, *extra], cwd=work, env=e,
-                         tree=memory)
+            res = _child((cmd or exe) + ["run", scene, "-o", str(out), *more, *extra], cwd=work,
+                         env=e, tree=memory)
             return res, out
 
         run("warmup")                                     # fills the geometry cache
-        best, cpus = {}, {}
-        for rep in range(5):                              # interleaved: the machine drifts
-            api_stages()                                  # the reference, in a warm process
-            for tag, extra in (("plots", ()), ("noplots", ("--no-plots",))):
-                (wall, rss, _, stdout, cpu), out = run(tag, *extra)
+        variants = {"plots": ((), None), "noplots": (("--no-plots",), None),
+                    "in-process": ((), [sys.executable, str(work / "run_in_process.py")])}
+        walls = {k: [] for k in ("api", "api-script", *variants, "cold")}
+        cpus: dict = {}
+        stages: dict = {}
+        sizes: dict = {}
+        rss: dict = {}
+        for rep in range(rounds):                         # interleaved: the machine drifts
+            r = subprocess.run([sys.executable, str(work / "api.py"), scene, "warm"], cwd=work,
+                               capture_output=True, text=True, env=env, check=True)
+            walls["api"].append(json.loads(r.stdout.strip().splitlines()[-1]))
+            wall, _, _, _, _ = _child([sys.executable, str(work / "api.py"), scene, "fresh"], cwd=work, env=env)
+            walls["api-script"].append(wall)
+            for tag, (extra, cmd) in variants.items():
+                (wall, peak, _, stdout, cpu), out = run(tag, *extra, cmd=cmd)
+                walls[tag].append(wall)
                 cpus.setdefault(tag, []).append(cpu)
-                if wall < best.get(tag, (1e9,))[0]:
-                    best[tag] = (wall, rss, (out / "run.nc").stat().st_size / 1e6,
-                                 _stage_times(stdout))
+                if wall <= min(walls[tag]):
+                    stages[tag], rss[tag] = _stage_times(stdout), peak
+                    sizes[tag] = (out / "run.nc").stat().st_size / 1e6
             # cold in the same rounds (each with a cache of its own, empty), so that cold minus
             # warm is a difference of bests taken under the same drift
-            (wall, rss, _, _, cpu), _ = run(f"cold{rep}", cold=True)
+            (wall, peak, _, _, cpu), _ = run(f"cold{rep}", cold=True)
+            walls["cold"].append(wall)
             cpus.setdefault("cold", []).append(cpu)
-            if wall < best.get("cold", (1e9,))[0]:
-                best["cold"] = (wall, rss)
-        cold_wall, cold_rss = best["cold"]
+            if wall <= min(walls["cold"]):
+                rss["cold"] = peak
+        best = {k: min(v) for k, v in walls.items()}
         cpu = {tag: float(np.median(v)) for tag, v in cpus.items()}
         cores = usable_cores()
         (_, _, cold_tree, _, _), _ = run("cold-memory", cold=True, memory=True)
@@ -454,29 +484,45 @@ def end_to_end():
         floor = {tag: run(f"one-{tag}", *extra, pings=1, memory=True)[0] for tag, extra in
                  (("plots", ()), ("noplots", ("--no-plots",)))}
         samples_mb = 100 * 16 * 4096 * 8 / 2**20          # complex64, what the run simulates
-        w_p, rss_p, size_p, st_p = best["plots"]
-        w_n, rss_n, _, st_n = best["noplots"]
-        tree_p, tree_n = peak["plots"][2], peak["noplots"][2]
-        rows = [["API: simulate → image → detect → count (warm)", f"{api['literal']:.2f}", "1.00", "", "", "", ""],
-                ["API: simulate → count (warm; count images and detects)", f"{api['lean']:.2f}",
-                 f"{api['lean'] / api['literal']:.2f}", "", "", "", ""],
-                ["`abacus run default` (plots on, warm)", f"{w_p:.2f}", f"{w_p / api['literal']:.2f}",
-                 f"{cpu['plots']:.2f}", f"{rss_p:.0f}", f"{tree_p:.0f}", f"{100 / w_p:.1f}"],
-                ["`abacus run default --no-plots` (warm)", f"{w_n:.2f}", f"{w_n / api['literal']:.2f}",
-                 f"{cpu['noplots']:.2f}", f"{rss_n:.0f}", f"{tree_n:.0f}", f"{100 / w_n:.1f}"],
-                ["`abacus run default` (plots on, cold: empty geometry cache)", f"{cold_wall:.2f}",
-                 f"{cold_wall / api['literal']:.2f}", f"{cpu['cold']:.2f}", f"{cold_rss:.0f}",
-                 f"{cold_tree:.0f}", f"{100 / cold_wall:.1f}"]]
+        tree = {"plots": peak["plots"][2], "noplots": peak["noplots"][2], "cold": cold_tree}
+
+        def paired(a, b):
+            """Median over the rounds of a / b, each round's pair measured side by side."""
+            return float(np.median(np.asarray(walls[a]) / np.asarray(walls[b])))
+
+        checks = [("run --no-plots / API", "noplots", "api",
+                   "`abacus run scenes/default.yaml --no-plots` / the API chain (warm)"),
+                  ("run / API", "plots", "api",
+                   "`abacus run scenes/default.yaml` (figures) / the API chain (warm)"),
+                  ("API script / run --no-plots", "api-script", "noplots",
+                   "a script of the API chain (a fresh process) / `abacus run ... --no-plots`")]
+        target_rows = []
+        for key, a, b, label in checks:
+            ratio = best[a] / best[b]
+            target_rows.append([label, f"{ratio:.2f}", f"{paired(a, b):.2f}", f"≤ {_TARGETS[key]:.2f}",
+                                "yes" if ratio <= _TARGETS[key] else "**no**"])
+        api = best["api"]
+        rows = [["API: simulate → image → detect → count (warm process)", f"{api:.2f}", "1.00", "", "", "", ""],
+                ["the same chain as a script (a fresh process, start to end)", f"{best['api-script']:.2f}",
+                 f"{best['api-script'] / api:.2f}", "", "", "", ""]]
+        for tag, label in (("plots", "`abacus run` (figures, warm)"),
+                           ("in-process", "`main([\"run\", ...])` from a script (figures drawn in its process, warm)"),
+                           ("noplots", "`abacus run --no-plots` (warm)"),
+                           ("cold", "`abacus run` (figures, cold: empty geometry cache)")):
+            rows.append([label, f"{best[tag]:.2f}", f"{best[tag] / api:.2f}", f"{cpu[tag]:.2f}",
+                         f"{rss[tag]:.0f}", f"{tree[tag]:.0f}" if tag in tree else "",
+                         f"{100 / best[tag]:.1f}"])
         stage_rows = []
-        for label, wall, st in (("`--no-plots`", w_n, st_n), ("plots on", w_p, st_p)):
+        for tag, label in (("noplots", "`--no-plots`"), ("plots", "figures (pool)"),
+                           ("in-process", "figures (in process)")):
+            st = stages[tag]
             named = sum(st.values())
             stage_rows.append([label] + [f"{st.get(k, 0.0):.2f}" for k in
                                          ("start", "load", "simulate", "process", "write", "figures")]
-                              + [f"{wall - named:.2f}", f"{wall:.2f}"])
+                              + [f"{best[tag] - named:.2f}", f"{best[tag]:.2f}"])
         mem_rows = []
-        for tag, label in (("noplots", "`--no-plots`"), ("plots", "plots on")):
-            one = floor[tag]
-            full = peak[tag]
+        for tag, label in (("noplots", "`--no-plots`"), ("plots", "figures")):
+            one, full = floor[tag], peak[tag]
             mem_rows.append([label, f"{one[2]:.0f}", f"{full[2]:.0f}", f"{full[2] - one[2]:.0f}",
                              f"{(full[2] - one[2]) / (samples_mb * 99 / 100):.2f}"])
 
@@ -487,9 +533,10 @@ def end_to_end():
                 ("`abacus count sim.nc -o cnt.nc`", exe + ["count", str(sim), "-o", str(cnt)], cnt)]
         per_cmd = []
         for label, cmd, path in cmds:
-            wall, rss, _, _, _ = _child(cmd, cwd=work, env=env)
-            per_cmd.append([label, f"{wall:.2f}", f"{path.stat().st_size / 1e6:.1f}", f"{rss:.0f}"])
-        per_cmd.append(["`abacus run default` (run.nc; PSS of its process tree)", f"{w_p:.2f}", f"{size_p:.1f}", f"{tree_p:.0f}"])
+            wall, peak_rss, _, _, _ = _child(cmd, cwd=work, env=env)
+            per_cmd.append([label, f"{wall:.2f}", f"{path.stat().st_size / 1e6:.1f}", f"{peak_rss:.0f}"])
+        per_cmd.append(["`abacus run default` (run.nc; PSS of its process tree)", f"{best['plots']:.2f}",
+                        f"{sizes['plots']:.1f}", f"{tree['plots']:.0f}"])
 
         # experiments: the default layout vs in process vs two local workers
         layouts = (("default (auto)", ()), ("--workers 0", ("--workers", "0")),
@@ -513,43 +560,58 @@ def end_to_end():
             return min(_child(cmd, cwd=work, env=env)[0] for _ in range(n))
         help_s = best_of(exe + ["--help"])
         numpy_s = best_of([sys.executable, "-c", "import numpy"])
+        load_after = os.getloadavg()[0]
     finally:
         shutil.rmtree(work, ignore_errors=True)
+    pool = "a pool of one worker process" if cores >= 2 else "its own process (one core)"
     return ("## End to end: what a user waits for\n\n"
-            "`abacus run default` (the pelagic survey: 100 pings, 100 targets, noise on) as a user "
-            "runs it — a fresh process, from the command line — next to its physics and processing "
-            "stages alone through the Python API in a warm process. *Warm*: the geometry "
-            "cache (beam table, beamwidths, calibration, beam figures; `~/.cache/abacus`) filled by "
-            "an earlier run and the compiled kernels on disk; *cold*: an empty geometry cache (a "
-            "new one in each round). "
-            "Best of 5 interleaved rounds (the API in a fresh, then warmed, process; then the two "
-            "runs); the package byte-compiled first, as an install is. Peak RSS: "
-            "the command's own process (its VmHWM), in the timed runs; and its process tree (the "
-            "figure helper and the copies it forks included), in a run of its own: the largest sum "
-            "of their proportional set sizes (PSS: a page shared by two processes counts half in "
-            "each), sampled every 10 ms.\n\n"
-            + table(["what", "wall (s)", "vs API (simulate → image → detect → count)",
-                     "CPU, process tree (s; median)", "peak RSS, process (MB)",
-                     "peak PSS, process tree (MB)", "pings/s"], rows)
-            + f"\n\nA cold start adds {cold_wall - w_p:.2f} s to the warm run (plots on; the "
-              "geometry cache filled: beam table, beamwidths, calibration, beam figures). "
-              f"The figures cost {cpu['plots'] - cpu['noplots']:.2f} CPU-s (plots on minus "
-              f"`--no-plots`, medians of the 5 rounds) against the run's {cpu['noplots']:.2f}. "
-              f"On {cores} cores no run ends before its CPU time shared by the cores: "
-              f"{cpu['noplots'] / cores:.2f} s `--no-plots`, {cpu['plots'] / cores:.2f} s with plots."
+            "`abacus run scenes/default.yaml` (the pelagic survey: 100 pings, 100 targets, noise "
+            "on) as a user runs it — a fresh process, from the command line — next to the public "
+            "API chain of the same numbers, `acoustics.simulate` → `processing.image` → "
+            "`processing.detect` → `processing.count`: timed in a warm process (its kernels "
+            "loaded, best of two calls after one untimed), and run as a script in a fresh process "
+            "(interpreter start to end, as a user's script). *Warm*: the geometry cache (beam "
+            "table, beamwidths, calibration, beam figures; `~/.cache/abacus`) filled by an earlier "
+            "run and the compiled kernels on disk; *cold*: an empty geometry cache (a new one in "
+            f"each round). {rounds} interleaved rounds (the API warm, the API script, the runs with "
+            "figures, with figures drawn in process, without figures, cold); best of the rounds; "
+            "the package byte-compiled first, as an install is. The machine is shared: its load "
+            f"average (other work included) was {load_before:.1f} when the section began and "
+            f"{load_after:.1f} when it ended, on {cores} cores.\n\n"
+            "**Targets** (issue 26; ratios of wall times; *best*: of the bests, *paired*: the "
+            "median over the rounds of the ratio within a round):\n\n"
+            + table(["ratio", "best", "paired", "target", "met"], target_rows)
+            + f"\n\n`abacus run` draws its figures through `abacus.figures.drawing`: here in {pool} "
+              "(start method \"spawn\"), which imports matplotlib while the run imports and "
+              "simulates, draws the first ping's images while it processes and the detection "
+              "and count figures while it writes; `abacus.cli.main(argv)` called by another program "
+              "draws them in its own process (a \"spawn\" worker would run the calling script "
+              "again). Peak RSS: the command's own process (its "
+              "VmHWM), in the timed runs; peak PSS: its process tree (the figure workers "
+              "included), in a run of its own — the largest sum of their proportional set sizes, "
+              "sampled every 10 ms.\n\n"
+            + table(["what", "wall (s)", "vs API (warm)", "CPU, process tree (s; median)",
+                     "peak RSS, process (MB)", "peak PSS, process tree (MB)", "pings/s"], rows)
+            + f"\n\nA cold start adds {best['cold'] - best['plots']:.2f} s to the warm run "
+              "(figures on; the geometry cache filled: beam table, beamwidths, calibration, beam "
+              f"figures). The figures cost {cpu['plots'] - cpu['noplots']:.2f} CPU-s (figures "
+              f"minus `--no-plots`, medians of the {rounds} rounds) against the run's "
+              f"{cpu['noplots']:.2f}; drawn in the run's own process they add "
+              f"{best['in-process'] - best['noplots']:.2f} s to its wall time, in the pool "
+              f"{best['plots'] - best['noplots']:.2f} s. On {cores} cores no run ends before its "
+              f"CPU time shared by the cores: {cpu['noplots'] / cores:.2f} s `--no-plots`, "
+              f"{cpu['plots'] / cores:.2f} s with figures."
             + "\n\n**Where a run's time goes** (the run's own `time:` line, best runs above; *exit*: "
-              "the wall time outside the named stages — interpreter start before the command's "
-              "module, and the end of the process). *start* is the interpreter importing what "
-              "the run uses; *simulate* includes loading the compiled kernels (numba, ≈ 0.5–0.7 s "
-              "in a fresh process) and, with plots, simulating the first ping once more for the "
-              "figure helper; with plots the helper (started before the run's own imports) loads "
-              "matplotlib during *start* and draws the first ping's images during *simulate*, and "
-              "*figures* is only the wait after the numbers are saved.\n\n"
+              "the wall time outside the named stages — the interpreter's start before the "
+              "command's module, and its end, modules torn down and the figure workers joined). "
+              "*start* is the interpreter importing what the run uses; *simulate* includes loading "
+              "the compiled kernels (numba, ≈ 0.5–0.7 s in a fresh process); *figures* is only the "
+              "wait for the drawing after the numbers are saved.\n\n"
             + table(["run", "start", "load", "simulate", "process", "write", "figures", "exit",
                      "wall (s)"], stage_rows)
             + "\n\n**Memory**: what the run holds beyond what any run holds. A one-ping run "
               "already has every fixed cost — the interpreter and its modules, the compiled "
-              "kernels, thread pools, the figure helper — so the peak of the 100-ping run minus "
+              "kernels, thread pools, the figure workers — so the peak of the 100-ping run minus "
               "the one-ping run's is the memory its data take, here against the 99 more pings' "
               f"samples ({samples_mb * 99 / 100:.0f} MB as complex64). Peak PSS of the process "
               "tree (MB):\n\n"
