@@ -110,15 +110,18 @@ def scene(extra: str = "", base: str = BASE) -> str:
     return yaml.safe_dump(_merged(data, more), sort_keys=False)
 
 
-_HDF5 = __import__("threading").Lock()   # HDF5 is not thread-safe: one dataset made at a time
-
-
 def _dataset(kind: str):
-    """A writer of a (possibly damaged) dataset, made from a good 1-ping simulation."""
+    """A writer of a (possibly damaged) dataset, made from a good 1-ping simulation: a copy of
+    the file :func:`prepare` made for ``kind`` in the main thread (HDF5 and xarray's file cache
+    are not safe across the probes' threads: making them there crashed the harness)."""
     def make(path: Path):
-        with _HDF5:
-            _make_dataset(kind, path)
+        shutil.copyfile(_dataset_file(kind), path)
+    make.kind = kind
     return make
+
+
+def _dataset_file(kind: str) -> Path:
+    return CACHE / f"dataset-{kind}.nc"
 
 
 def _make_dataset(kind: str, path: Path):
@@ -872,6 +875,13 @@ def prepare():
         (CACHE / "s.yaml").write_text(BASE)
         subprocess.run(ABACUS + ["simulate", str(CACHE / "s.yaml"), "-o", str(good), "--overwrite"],
                        check=True, env=_env(), capture_output=True)
+    # every damaged dataset the probes use, made here in the main thread, one at a time
+    kinds = {content.kind for p in probes() for content in p.files.values()
+             if callable(content) and hasattr(content, "kind")}
+    for kind in sorted(kinds):
+        target = _dataset_file(kind)
+        target.unlink(missing_ok=True)
+        _make_dataset(kind, target)
 
 
 def run_all(classes=None, *, workers: int = 2) -> list[Result]:

@@ -83,7 +83,9 @@ class SamplingSpec(ConfigModel):
     def _fill_band(cls, data):
         if isinstance(data, dict) and data.get("receiver_bandwidth_hz") is None:
             rate = data.get("rate_hz", preset.SAMPLE_RATE_HZ)
-            if isinstance(rate, (int, float)) and not isinstance(rate, bool) and rate > 0:
+            # only from a rate the schema accepts: a refused rate is named once, not again
+            # through the values derived from it
+            if isinstance(rate, (int, float)) and not isinstance(rate, bool) and 0 < rate <= 100e6:
                 data = {**data, "receiver_bandwidth_hz": float(rate) / 2}
         return data
 
@@ -244,7 +246,7 @@ class Scene(ConfigModel):
                 med["absorption_db_per_m"] = float(f"{float(alpha):.6g}")
         if noise.get("bandwidth_hz") is None:
             band, rate = samp.get("receiver_bandwidth_hz"), samp.get("rate_hz", preset.SAMPLE_RATE_HZ)
-            if band is None and _is_num(rate):
+            if band is None and _is_num(rate) and 0 < rate <= 100e6:
                 band = rate / 2
             if _is_num(band):
                 noise["bandwidth_hz"] = float(band)
