@@ -9,12 +9,11 @@ scene (a threshold derived from noise in a scene without noise).
 """
 from __future__ import annotations
 
-import warnings
 from functools import lru_cache
 
 import numpy as np
 
-from acoustics.scene.errors import SceneError, SceneWarning, key_tuple
+from acoustics.scene.errors import SceneError, raise_problems, warn_problems
 from processing.base.config import ConfigError, ConfigModel, validate_file
 from processing.settings import ProcessingSettings
 
@@ -169,19 +168,9 @@ def load_run(path, *, check: bool = True):
     except ConfigError:
         marks = {}
     settings = _validated(scene.processing, file=path, marks=marks)
-    problems = record_problems(scene, settings)
-    if problems:
-        lines = []
-        for message, key in problems:
-            line = marks.get(tuple(key_tuple(key)))
-            lines.append(f"{path}:{line}: {key}: {message}" if line else f"{path}: {key}: {message}")
-        head = f"{len(lines)} problems:\n" if len(lines) > 1 else ""
-        raise SceneError(head + "\n".join(lines))
+    raise_problems(record_problems(scene, settings), file=path, marks=marks)
     if check:
-        for message, key in settings_problems(scene, settings):
-            line = marks.get(tuple(key_tuple(key)))
-            where = f"{path}:{line}" if line else str(path)
-            warnings.warn(f"{where}: {key}: {message}", SceneWarning, stacklevel=2)
+        warn_problems(settings_problems(scene, settings), file=path, marks=marks)
     return scene.model_copy(update={"processing": settings.model_dump(mode="json", by_alias=True)})
 
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["spherical_to_cartesian", "cartesian_to_spherical", "Pose"]
+__all__ = ["spherical_to_cartesian", "cartesian_to_spherical", "Pose", "transform_rotation"]
 
 
 def spherical_to_cartesian(range_m, azimuth_rad, elevation_rad):
@@ -117,3 +117,14 @@ class Pose:
     def direction_to_world(self, v_sonar):
         """Rotate directions (..., 3) from the sonar frame to the world frame."""
         return np.asarray(v_sonar, float) @ self.rotation.T
+
+
+def transform_rotation(rotate_deg) -> np.ndarray:
+    """The rotation of a mesh's ``transform.rotate_deg``: about x, then y, then z (degrees,
+    right-handed), R = R_z R_y R_x, shape (3, 3)."""
+    rx, ry, rz = np.radians(rotate_deg)
+    cx, sx, cy, sy, cz, sz = np.cos(rx), np.sin(rx), np.cos(ry), np.sin(ry), np.cos(rz), np.sin(rz)
+    r_x = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    r_y = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    r_z = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return r_z @ r_y @ r_x

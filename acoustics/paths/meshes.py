@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from acoustics.frames import Pose
+from acoustics.frames import Pose, transform_rotation
 from acoustics.seeds import ping_rng
 
 __all__ = ["SceneMesh", "build_mesh", "scene_meshes", "MeshError", "mesh_file_faces",
@@ -98,15 +98,6 @@ class SceneMesh:
         return ref, d
 
 
-def _rotation(deg):
-    rx, ry, rz = np.radians(deg)
-    cx, sx, cy, sy, cz, sz = np.cos(rx), np.sin(rx), np.cos(ry), np.sin(ry), np.cos(rz), np.sin(rz)
-    r_x = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    r_y = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    r_z = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return r_z @ r_y @ r_x
-
-
 def _grid_mesh(x, y, z):
     """Triangulated height field z[j, i] over x[i], y[j]."""
     xx, yy = np.meshgrid(x, y)
@@ -145,21 +136,14 @@ def _rough_floor(spec, seed: int):
 
 def moving_surface(spec, seed: int = 0):
     """The :class:`~acoustics.paths.sea_surface.MovingSurface` of a ``wind_sea`` or ``swell``
-    shape (before its transform)."""
-    from acoustics.paths import sea_surface as sea
-    common = dict(center_m=spec.center_m, size_m=spec.size_m, resolution_m=spec.resolution_m,
-                  depth_m=spec.water_depth_m, mean_level_m=spec.mean_level_m)
-    if spec.shape == "wind_sea":
-        return sea.wind_sea(wind_speed_m_s=spec.wind_speed_m_s, direction_deg=spec.direction_deg,
-                            fetch_m=None if spec.fetch_km is None else 1e3 * spec.fetch_km,
-                            spreading=spec.spreading, seed=seed + spec.seed, **common)
-    return sea.swell(components=[(w.amplitude_m, w.wavelength_m, w.direction_deg, w.phase_deg)
-                                 for w in spec.waves], **common)
+    shape (before its transform): :func:`acoustics.paths.sea_surface.surface_of`."""
+    from acoustics.paths.sea_surface import surface_of
+    return surface_of(spec, seed)
 
 
 def _transform_matrix(t):
     mat = np.eye(4)
-    mat[:3, :3] = _rotation(t.rotate_deg) * t.scale
+    mat[:3, :3] = transform_rotation(t.rotate_deg) * t.scale
     mat[:3, 3] = t.translate_m
     return mat
 

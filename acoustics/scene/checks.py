@@ -244,7 +244,8 @@ def _sea_problems(scene, index: int, boundary, pose, motion, pings, notes) -> li
     name = f"the {spec.shape.replace('_', ' ')} ({boundary.name!r})"
     surf = surface_of(spec, scene.seed)
     tr = spec.transform
-    rot = _rotation_matrix(tr.rotate_deg)
+    from acoustics.frames import transform_rotation
+    rot = transform_rotation(tr.rotate_deg)
     down = float(rot[2, 2])       # world z of the sea's own z axis (its "down")
     if abs(down) < 1e-6:
         return []                  # a sea stood on its edge: no "above" to test
@@ -336,14 +337,6 @@ def _sea_problems(scene, index: int, boundary, pose, motion, pings, notes) -> li
     return out
 
 
-def _rotation_matrix(deg):
-    """The transform's rotation (x, then y, then z axis, degrees), as meshes apply it."""
-    rx, ry, rz = np.radians(deg)
-    cx, sx, cy, sy, cz, sz = np.cos(rx), np.sin(rx), np.cos(ry), np.sin(ry), np.cos(rz), np.sin(rz)
-    r_x = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
-    r_y = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
-    r_z = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
-    return r_z @ r_y @ r_x
 
 
 def _below_floor(below, depth, scale, what, name, t=None, pings=None):

@@ -1,12 +1,11 @@
 """Reading a scene file: YAML with line numbers, validation, file checks, physics warnings."""
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 from acoustics.scene.builtin import resolve_scene_argument
 from acoustics.scene.checks import cross_check
-from acoustics.scene.errors import SceneError, SceneWarning, key_tuple
+from acoustics.scene.errors import SceneError, key_tuple, located, warn_problems
 from acoustics.scene.schema import Scene
 from acoustics.sonar.platform import MotionFileError, read_motion_csv
 from processing.base.config import ConfigError, parse_yaml, read_yaml
@@ -89,10 +88,7 @@ def load_scene(path: str | Path, *, check: bool = True) -> Scene:
     scene = validate_scene(data, file=path, marks=marks, source_path=path.resolve())
     _check_files(scene, path, marks)
     if check:
-        for message, key in cross_check(scene):
-            line = marks.get(tuple(key_tuple(key)))
-            where = f"{path}:{line}" if line else str(path)
-            warnings.warn(f"{where}: {key}: {message}", SceneWarning, stacklevel=2)
+        warn_problems(cross_check(scene), file=path, marks=marks)
     return scene
 
 
@@ -120,8 +116,7 @@ def _check_files(scene: Scene, path: Path, marks):
     home = path.resolve().parent
 
     def where(key):
-        line = marks.get(tuple(key_tuple(key)))
-        return f"{path}:{line}" if line else str(path)
+        return located(path, marks, key)
 
     for key, file in mesh_files(scene):
         try:

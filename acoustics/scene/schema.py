@@ -320,14 +320,8 @@ class Scene(ConfigModel):
         notes: list = []
         problems = physical_problems(scene, notes=notes)
         scene._physics_notes = tuple(notes)
-        if problems:
-            from acoustics.scene.errors import key_tuple
-            lines = []
-            for message, key in problems:
-                line = marks.get(tuple(key_tuple(key)))
-                lines.append(f"{file}:{line}: {key}: {message}" if line else f"{file}: {key}: {message}")
-            head = f"{len(lines)} problems:\n" if len(lines) > 1 else ""
-            raise SceneError(head + "\n".join(lines))
+        from acoustics.scene.errors import raise_problems
+        raise_problems(problems, file=file, marks=marks)
         return scene
 
     def with_updates(self, updates: dict, *, what: str = "updates") -> "Scene":
