@@ -153,6 +153,14 @@ class TrackSettings(ConfigModel):
 
     method: Literal["kalman", "alpha_beta"] = "kalman"
     """Constant-velocity Kalman filter with RTS smoothing, or the thesis' αβ filter (§7)."""
+    association: Literal["gnn", "jpda"] = "gnn"
+    """Gate-and-assign part (processing/tracking/association.py): global nearest neighbour, or
+    the parametric JPDA, which shares a detection falling in several tracks' gates."""
+    resolution_cells: NonNegativeReal = Field(1.0, le=10)
+    """Resolution gate: a track the assignment left without a detection takes one within this
+    many resolution cells (range × azimuth resolution × the fan's elevation width) of its
+    prediction, and no new track starts there (two fish closer than a cell are not told apart);
+    0 turns it off (processing.tracking.filters.track_detections)."""
     gate_probability: Real = Field(0.99, gt=0.5, lt=1)
     """Chi-square gate (3 degrees of freedom) on the innovation's Mahalanobis distance."""
     accel_sd_m_s2: PositiveReal = Field(0.1, le=100)

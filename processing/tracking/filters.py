@@ -42,7 +42,7 @@ from processing.tracking.association import (gate_threshold, gated_costs, global
 from processing.tracking.management import MOfN
 from processing.tracking.motion import cv_matrices, motion_model
 
-__all__ = ["Track", "track_detections", "measurement_covariance", "cv_matrices"]
+__all__ = ["Track", "track_detections", "measurement_covariance", "resolution_covariance", "cv_matrices"]
 
 
 @dataclass
@@ -130,6 +130,44 @@ def measurement_covariance(range_m, azimuth_rad, elevation_rad, snr_db, *, range
     s_r = range_resolution_m / np.sqrt(2 * sinr)
     s_t = azimuth_resolution_rad / np.sqrt(2 * sinr)
     s_p = wavelength_m / (2 * np.pi * baseline_m * np.maximum(np.cos(ph), 1e-3)) / np.sqrt(sinr)
+    return _to_world(r, th, ph, s_r, s_t, s_p, rotation)
+
+
+def resolution_covariance(range_m, azimuth_rad, elevation_rad, *, range_resolution_m: float,
+                          azimuth_resolution_rad: float, elevation_resolution_rad: float, rotation=None):
+    """World-frame covariance whose 1σ ellipsoid is half a resolution cell about each detection.
+
+    Two fish closer than a resolution cell (range resolution × azimuth resolution × the
+    transmitter's elevation beamwidth, which mixes every echo of the fan's thickness) give one
+    echo, placed anywhere between them, or two that swap; an echo within a cell of a track's
+    prediction is therefore no evidence of a new fish. The tracker's resolution gate
+    (``track.resolution_cells``) uses this covariance.
+
+    Parameters
+    ----------
+    range_m, azimuth_rad, elevation_rad : array_like, shape (n,)
+    range_resolution_m, azimuth_resolution_rad, elevation_resolution_rad : float
+        3 dB widths of the cell.
+    rotation : ndarray, shape (3, 3) or (n, 3, 3), optional
+        Sonar axes in world coordinates (columns); None: identity.
+
+    Returns
+    -------
+    ndarray, shape (n, 3, 3)
+        Covariance (m²).
+    """
+    r = np.asarray(range_m, float)
+    th = np.asarray(azimuth_rad, float)
+    ph = np.asarray(elevation_rad, float)
+    one = np.ones_like(r)
+    return _to_world(r, th, ph, 0.5 * range_resolution_m * one, 0.5 * azimuth_resolution_rad * one,
+                     0.5 * elevation_resolution_rad * one, rotation)
+
+
+def _to_world(r, th, ph, s_r, s_t, s_p, rotation):
+    """Spherical standard deviations (range m, azimuth rad, elevation rad) of points at
+    (r, θ, φ) as world-frame covariances (n, 3, 3): the Jacobian of x = r cos φ sin θ,
+    y = r sin φ, z = r cos φ cos θ, then the ping's rotation."""
     ct, st, cp, sp = np.cos(th), np.sin(th), np.cos(ph), np.sin(ph)
     J = np.empty(r.shape + (3, 3))
     J[..., 0, :] = np.stack([cp * st, r * cp * ct, -r * sp * st], -1)
@@ -144,12 +182,12 @@ def measurement_covariance(range_m, azimuth_rad, elevation_rad, snr_db, *, range
     return C
 
 
-
 def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: str = "kalman",
                      association: str = "gnn", gate_probability: float = 0.99,
                      accel_sd_m_s2: float = 0.5, initial_speed_sd_m_s: float = 1.0, alpha: float = 0.5,
                      beta: float = 0.2, confirm_hits: int = 3, confirm_window: int = 4,
-                     max_misses: int = 2, motion=None, management=None):
+                     max_misses: int = 2, resolution_m2=None, resolution_cells: float = 1.0,
+                     motion=None, management=None):
     """Tracks of detections across pings.
 
     Parameters
@@ -171,6 +209,17 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
     gate_probability, accel_sd_m_s2, initial_speed_sd_m_s, alpha, beta, confirm_hits,
     confirm_window, max_misses
         See the module docstring.
+    resolution_m2 : array_like, shape (n, 3, 3), optional
+        Each detection's resolution cell as a covariance (:func:`resolution_covariance`).
+        With it, the resolution gate: a track left without a detection by the assignment takes
+        an unassigned detection within ``resolution_cells`` cells of its prediction (Mahalanobis
+        distance against P + R + c² C_cell inside the same chi-square gate; its update then
+        uses R + c² C_cell, as the echo may be merged with a neighbour's), and a detection no
+        track took but lying within that gate of a live track starts no new track — the sonar
+        cannot tell a new fish from the tracked one there (an echo merged with or split from a
+        neighbour's).
+    resolution_cells : float
+        c above; 0 turns the resolution gate off.
     motion : object, optional
         A motion part (``predict``, ``innovation_covariance``, ``update``, ``update_mixture``,
         ``smooth``; :mod:`processing.tracking.motion`) used instead of ``method``.
@@ -197,6 +246,12 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
     if not (len(pings) == len(pos) == len(cov)):
         raise ValueError("ping_index, position_m and covariance_m2 must have one row per detection")
     ok = np.all(np.isfinite(pos), axis=1) & np.all(np.isfinite(cov), axis=(1, 2))
+    cell = None
+    if resolution_m2 is not None and resolution_cells > 0:
+        cell = float(resolution_cells) ** 2 * np.asarray(resolution_m2, float).reshape(-1, 3, 3)
+        if len(cell) != len(pos):
+            raise ValueError("resolution_m2 must have one row per detection")
+        ok &= np.all(np.isfinite(cell), axis=(1, 2))
     gate = gate_threshold(float(gate_probability))
     live: list[Track] = []
     done: list[Track] = []
@@ -222,6 +277,23 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
         a_tr, a_det = global_nearest_neighbour(cost)
         assigned = dict(zip(a_tr.tolist(), a_det.tolist()))
         used = set(a_det.tolist())
+        blocked = set()
+        loose = {}
+        if cell is not None and live and rows.size:
+            # the resolution gate: a second, looser pass over what the first left, and no
+            # births within a cell of a live track
+            S2 = np.stack([motion.innovation_covariance(Pp, cov[rows] + cell[rows], dt) for _, Pp, dt in pred])
+            S2 = np.broadcast_to(S2, (len(live), rows.size, 3, 3))
+            _, cost2 = gated_costs(np.array([xp[:3] for xp, _, _ in pred]), S2, pos[rows], gate)
+            free_t = np.array([i for i in range(len(live)) if i not in assigned], int)
+            free_d = np.array([k for k in range(rows.size) if k not in used], int)
+            if free_t.size and free_d.size:
+                b_tr, b_det = global_nearest_neighbour(cost2[np.ix_(free_t, free_d)])
+                for i, k in zip(free_t[b_tr].tolist(), free_d[b_det].tolist()):
+                    assigned[i] = k
+                    loose[i] = k
+                    used.add(k)
+            blocked = set(np.flatnonzero(np.isfinite(cost2).any(axis=0)).tolist()) - used
         weights = jpda_weights(cost) if association == "jpda" and cost.size else None
         # 3. update
         for i, (tr, (xp, Pp, dt)) in enumerate(zip(live, pred)):
@@ -235,7 +307,9 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
                 x, P = motion.update_mixture(xp, Pp, pos[rows[k]], cov[rows[k]], weights[i, k], dt)
             if i in assigned:
                 j = rows[assigned[i]]
-                if not shared:
+                if i in loose:
+                    x, P = motion.update(xp, Pp, pos[j], cov[j] + cell[j], dt)
+                elif not shared:
                     x, P = motion.update(xp, Pp, pos[j], cov[j], dt)
                 tr.x.append(x)
                 tr.P.append(P)
@@ -260,7 +334,7 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
                 still.append(tr)
         live = still
         for k, j in enumerate(rows):
-            if k in used:
+            if k in used or k in blocked:
                 continue
             x0, P0 = management.birth(pos[j], cov[j])
             tr = Track(next_id, [int(p)], [int(j)], [x0], [P0], [x0], [P0], [t], hits=1)

@@ -47,6 +47,15 @@ def _baseline_m(tree):
     return float(np.linalg.norm(xyz[sub == "B"].mean(0) - xyz[sub == "A"].mean(0)))
 
 
+def _elevation_beamwidth_rad(tree, volume):
+    """The transmitter's 3 dB elevation beamwidth (rad): the fan's thickness, within which
+    echoes are not resolved in elevation (twice the counting volume's half-width without it)."""
+    sonar = group_of(tree, SONAR_GROUP)
+    if sonar is not None and "beamwidth_transmit_minor" in sonar:
+        return float(np.radians(float(sonar["beamwidth_transmit_minor"])))
+    return 2.0 * float(volume.elevation_halfwidth_rad)
+
+
 class _Poses:
     """The sonar's pose at each ping of a record, read once (None: sonar frame = world frame)."""
 
@@ -92,7 +101,7 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     """
     from processing.pipeline import RecordChain
     from processing.records import with_detections
-    from processing.tracking.filters import measurement_covariance, track_detections
+    from processing.tracking.filters import measurement_covariance, resolution_covariance, track_detections
     chain = RecordChain(tree, settings)
     tree, st = chain.tree, chain.settings
     ts_ = st.track
@@ -120,12 +129,19 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
                                  wavelength_m=c / f0, baseline_m=baseline,
                                  interference_db=ts_.interference_db,
                                  rotation=poses.rotation_of(rows))
+    cell = resolution_covariance(det["range_m"], det["azimuth_rad"], det["elevation_rad"],
+                                 range_resolution_m=detected.range_resolution_m,
+                                 azimuth_resolution_rad=detected.azimuth_resolution_rad,
+                                 elevation_resolution_rad=_elevation_beamwidth_rad(tree, detected.volume),
+                                 rotation=poses.rotation_of(rows))
     targets = chain.single_targets(detected)
     ts_u, ts_c = targets["ts_uncomp_db"], targets["ts_comp_db"]
     single = np.asarray(targets["single_target"], bool)
     times = _ping_times_s(tree)
     keep = np.flatnonzero(usable & single & np.all(np.isfinite(world), axis=1))
     tracks = track_detections(rows[keep], times, world[keep], cov[keep], method=ts_.method,
+                              association=ts_.association, resolution_m2=cell[keep],
+                              resolution_cells=ts_.resolution_cells,
                               gate_probability=ts_.gate_probability, accel_sd_m_s2=ts_.accel_sd_m_s2,
                               initial_speed_sd_m_s=ts_.initial_speed_sd_m_s, alpha=ts_.alpha,
                               beta=ts_.beta, confirm_hits=ts_.confirm_hits,
