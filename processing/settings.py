@@ -159,7 +159,8 @@ class TrackSettings(ConfigModel):
     resolution_cells: NonNegativeReal = Field(1.0, le=10)
     """Resolution gate: a track the assignment left without a detection takes one within this
     many resolution cells (range × azimuth resolution × the fan's elevation width) of its
-    prediction, and no new track starts there (two fish closer than a cell are not told apart);
+    prediction, and no new track starts within it of a confirmed track (two fish closer than a
+    cell are not told apart; the cell's spread is δ/√12 per axis);
     0 turns it off (processing.tracking.filters.track_detections)."""
     gate_probability: Real = Field(0.99, gt=0.5, lt=1)
     """Chi-square gate (3 degrees of freedom) on the innovation's Mahalanobis distance."""
@@ -176,11 +177,15 @@ class TrackSettings(ConfigModel):
     confirm_hits: PositiveCount = Field(3, le=100)
     """Detections a tentative track needs within its first ``confirm_window`` pings."""
     confirm_window: PositiveCount = Field(4, le=100)
-    max_misses: Count = Field(2, le=100)
-    """Consecutive pings without a detection after which a track ends."""
+    max_misses: Count = Field(4, le=100)
+    """Consecutive pings without a detection after which a track ends (4: a fish hidden for a
+    second in a neighbour's echo at 0.25 s pings keeps its track; docs/validation.md, "Tracking")."""
     sidelobe_db: NonNegativeReal = Field(20.0, le=100)
-    """Single targets: a detection within 2.5 range cells of one this much stronger (dB) is
-    taken as its range or azimuth sidelobe (or ghost) and not tracked; 0 tracks everything."""
+    """Single targets: a detection within 2.5 range cells of one this much stronger (dB), or
+    weaker and in its resolution cell, is taken as its range or azimuth sidelobe (or ghost) and
+    not tracked; 0 tracks everything. In a dense school the same-cell part drops fish side by
+    side with a stronger one; off (0), a strong lone fish's sidelobes form short tracks of
+    their own (docs/validation.md, "Tracking")."""
     min_ts_db: Real = Field(-70.0, ge=-200, le=50)
     """TS threshold of single targets (dB re 1 m²): a detection whose beam-compensated TS is
     below it (a multipath echo via the floor, a far range sidelobe) is not tracked; one beyond

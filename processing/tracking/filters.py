@@ -70,6 +70,8 @@ class Track:
     smoothed : list of ndarray
         Smoothed states (6,), one per ping, once the track is finished (RTS for the Kalman
         filter, the filtered states for αβ).
+    R : list of ndarray or None
+        Measurement covariance (3, 3) its update used at each ping, None for a miss.
     """
 
     track_id: int
@@ -84,6 +86,7 @@ class Track:
     hits: int = 0
     misses: int = 0
     smoothed: list = field(default_factory=list)
+    R: list = field(default_factory=list)
 
 
 def measurement_covariance(range_m, azimuth_rad, elevation_rad, snr_db, *, range_resolution_m: float,
@@ -135,7 +138,7 @@ def measurement_covariance(range_m, azimuth_rad, elevation_rad, snr_db, *, range
 
 def resolution_covariance(range_m, azimuth_rad, elevation_rad, *, range_resolution_m: float,
                           azimuth_resolution_rad: float, elevation_resolution_rad: float, rotation=None):
-    """World-frame covariance whose 1σ ellipsoid is half a resolution cell about each detection.
+    """World-frame covariance of a position anywhere within a resolution cell (σ = δ/√12 per axis).
 
     Two fish closer than a resolution cell (range resolution × azimuth resolution × the
     transmitter's elevation beamwidth, which mixes every echo of the fan's thickness) give one
@@ -160,8 +163,10 @@ def resolution_covariance(range_m, azimuth_rad, elevation_rad, *, range_resoluti
     th = np.asarray(azimuth_rad, float)
     ph = np.asarray(elevation_rad, float)
     one = np.ones_like(r)
-    return _to_world(r, th, ph, 0.5 * range_resolution_m * one, 0.5 * azimuth_resolution_rad * one,
-                     0.5 * elevation_resolution_rad * one, rotation)
+    # an unresolved echo lies anywhere within its cell: uniform, σ = δ/√12
+    u = one / np.sqrt(12.0)
+    return _to_world(r, th, ph, range_resolution_m * u, azimuth_resolution_rad * u,
+                     elevation_resolution_rad * u, rotation)
 
 
 def _to_world(r, th, ph, s_r, s_t, s_p, rotation):
@@ -293,7 +298,8 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
                     assigned[i] = k
                     loose[i] = k
                     used.add(k)
-            blocked = set(np.flatnonzero(np.isfinite(cost2).any(axis=0)).tolist()) - used
+            firm = np.array([tr.confirmed for tr in live], bool)
+            blocked = set(np.flatnonzero(np.isfinite(cost2[firm]).any(axis=0)).tolist()) - used
         weights = jpda_weights(cost) if association == "jpda" and cost.size else None
         # 3. update
         for i, (tr, (xp, Pp, dt)) in enumerate(zip(live, pred)):
@@ -313,6 +319,7 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
                     x, P = motion.update(xp, Pp, pos[j], cov[j], dt)
                 tr.x.append(x)
                 tr.P.append(P)
+                tr.R.append(cov[j] + cell[j] if i in loose else cov[j])
                 tr.detection.append(int(j))
                 tr.hits += 1
                 tr.misses = 0
@@ -320,6 +327,7 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
                 tr.x.append(x if shared else xp)
                 tr.P.append(P if shared else Pp)
                 tr.detection.append(-1)
+                tr.R.append(None)
                 tr.misses += 1
             if not tr.confirmed and management.confirmed(tr.hits, len(tr.pings)):
                 tr.confirmed = True
@@ -337,13 +345,14 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
             if k in used or k in blocked:
                 continue
             x0, P0 = management.birth(pos[j], cov[j])
-            tr = Track(next_id, [int(p)], [int(j)], [x0], [P0], [x0], [P0], [t], hits=1)
+            tr = Track(next_id, [int(p)], [int(j)], [x0], [P0], [x0], [P0], [t], hits=1, R=[cov[j]])
             tr.confirmed = management.confirmed(1, 1)
             next_id += 1
             live.append(tr)
     done.extend(tr for tr in live if tr.confirmed)
     for tr in done:
         _trim(tr)
+    for tr in done:
         tr.smoothed = motion.smooth(tr.x, tr.P, tr.x_pred, tr.P_pred, tr.times)
     done.sort(key=lambda tr: tr.track_id)
     for new_id, tr in enumerate(done):
@@ -354,5 +363,6 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
 def _trim(tr: Track):
     """Drop the trailing misses: a track ends at its last detection."""
     while tr.detection and tr.detection[-1] < 0:
-        for name in ("pings", "detection", "x", "P", "x_pred", "P_pred", "times"):
+        for name in ("pings", "detection", "x", "P", "x_pred", "P_pred", "times", "R"):
             getattr(tr, name).pop()
+

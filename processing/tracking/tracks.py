@@ -137,6 +137,15 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     targets = chain.single_targets(detected)
     ts_u, ts_c = targets["ts_uncomp_db"], targets["ts_comp_db"]
     single = np.asarray(targets["single_target"], bool)
+    if ts_.resolution_cells > 0:
+        # a second peak in a stronger echo's cell is left to the resolution gate, which keeps it
+        # from starting a track without losing a fish side by side with a stronger one
+        from processing.backscatter.single_targets import single_targets
+        single = single_targets(det["ping"], det["range_m"], det["azimuth_rad"], det["amplitude"],
+                                range_resolution_m=detected.range_resolution_m,
+                                azimuth_resolution_rad=detected.azimuth_resolution_rad,
+                                sidelobe_db=ts_.sidelobe_db, same_cell=False)
+        single &= ~(ts_c < ts_.min_ts_db)
     times = _ping_times_s(tree)
     keep = np.flatnonzero(usable & single & np.all(np.isfinite(world), axis=1))
     tracks = track_detections(rows[keep], times, world[keep], cov[keep], method=ts_.method,
