@@ -442,3 +442,9 @@ def tracking():
 
 if __name__ == "__main__":
     REPORT.main()
+
+
+@section
+def density():
+    from density import density_section
+    return density_section()

@@ -27,7 +27,7 @@ from processing.base.dataset import DatasetError, group_of, has_group
 from processing.pipeline import pose_of
 
 __all__ = ["TRACKS_GROUP", "track", "tracks_of", "track_summary", "format_tracks",
-           "write_tracks_csv", "strict_json"]
+           "write_tracks_csv", "strict_json", "truth_in_volume"]
 
 
 def _ping_times_s(tree):
@@ -233,12 +233,44 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     from processing.tracking.scores import score_tracks
     truth = _truth_table(tree)
     if truth is not None:
+        # the fish inside the volume the tracks are counted in: the simulator's own flag bounds
+        # only the image's range (it knows no count.range_m or count half-widths)
+        truth["target_in_counting_volume"] = _inside(truth, volume, poses, ping_index_of_row)
         ds = score_tracks(ds, truth, volume=volume, to_sonar=poses.to_sonar,
                           row_of_ping_index={int(p): i for i, p in enumerate(ping_index_of_row)},
                           max_distance_m=ts_.score_distance_m)
     out = tree.copy()
     out[TRACKS_GROUP] = xr.DataTree(ds)
     return out
+
+
+def _inside(truth, volume, poses, ping_index_of_row):
+    """Per truth row: inside ``volume`` at its ping's pose (False for a ping not in the record)."""
+    row_of = {int(p): i for i, p in enumerate(ping_index_of_row)}
+    tp = np.asarray(truth["target_ping_index"], int)
+    known = np.array([int(p) in row_of for p in tp], bool)
+    rows = np.array([row_of.get(int(p), 0) for p in tp], int)
+    xyz = np.stack([truth[f"target_world_{a}"] for a in "xyz"], -1).reshape(-1, 3)
+    return np.asarray(volume.contains(poses.to_sonar(rows, xyz)), bool) & known
+
+
+def truth_in_volume(tree: xr.DataTree):
+    """Whether each true fish (row of the truth table) is inside the counting volume its tracks
+    were counted in (the volume of /Processing/Tracks' attributes, at each ping's pose).
+
+    Returns
+    -------
+    ndarray of bool, shape (n_truth_rows,), or None without truth
+    """
+    from processing.base.counting_volume import CountingVolume
+    from processing.base.dataset import ping_indices
+    truth = _truth_table(tree)
+    if truth is None:
+        return None
+    a = tracks_of(tree).attrs
+    volume = CountingVolume(tuple(float(x) for x in np.asarray(a["counting_range_m"]).ravel()),
+                            float(a["counting_azimuth_halfwidth_rad"]), float(a["counting_elevation_halfwidth_rad"]))
+    return _inside(truth, volume, _Poses(tree), np.asarray(ping_indices(tree[ELEMENT_GROUP].ds), int))
 
 
 def _truth_table(tree):
