@@ -440,11 +440,11 @@ def tracking():
     return tracking_section()
 
 
-if __name__ == "__main__":
-    REPORT.main()
-
-
 @section
 def density():
     from density import density_section
     return density_section()
+
+
+if __name__ == "__main__":
+    REPORT.main()
