@@ -164,10 +164,10 @@ class TrackSettings(ConfigModel):
     0 turns it off (processing.tracking.filters.track_detections)."""
     gate_probability: Real = Field(0.99, gt=0.5, lt=1)
     """Chi-square gate (3 degrees of freedom) on the innovation's Mahalanobis distance."""
-    accel_sd_m_s2: PositiveReal = Field(0.1, le=100)
-    """Process noise: white acceleration of this spectral density √q (m/s² per √(1/s)). 0.1 suits
-    schooling fish cruising at body lengths per second; a larger value follows sharper turns
-    but lets a track jump to a neighbour (docs/validation.md, "Tracking")."""
+    accel_sd_m_s2: PositiveReal = Field(0.05, le=100)
+    """Process noise: white acceleration of this spectral density √q (m/s² per √(1/s)). 0.05 suits
+    schooling fish cruising nearly straight at body lengths per second; a larger value follows
+    sharper turns but lets a track jump to a neighbour (docs/validation.md, "Tracking")."""
     initial_speed_sd_m_s: PositiveReal = Field(0.5, le=100)
     """Velocity spread of a new track (m/s); the αβ gate's allowance for motion."""
     alpha: Real = Field(0.5, gt=0, le=1)
@@ -177,9 +177,9 @@ class TrackSettings(ConfigModel):
     confirm_hits: PositiveCount = Field(3, le=100)
     """Detections a tentative track needs within its first ``confirm_window`` pings."""
     confirm_window: PositiveCount = Field(4, le=100)
-    max_misses: Count = Field(4, le=100)
-    """Consecutive pings without a detection after which a track ends (4: a fish hidden for a
-    second in a neighbour's echo at 0.25 s pings keeps its track; docs/validation.md, "Tracking")."""
+    max_misses: Count = Field(6, le=100)
+    """Consecutive pings without a detection after which a track ends (6: a fish hidden for
+    1.5 s in a neighbour's echo at 0.25 s pings keeps its track; docs/validation.md, "Tracking")."""
     sidelobe_db: NonNegativeReal = Field(20.0, le=100)
     """Single targets: a detection within 2.5 range cells of one this much stronger (dB), or
     weaker and in its resolution cell, is taken as its range or azimuth sidelobe (or ghost) and
