@@ -220,9 +220,10 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
         an unassigned detection within ``resolution_cells`` cells of its prediction (Mahalanobis
         distance against P + R + c² C_cell inside the same chi-square gate; its update then
         uses R + c² C_cell, as the echo may be merged with a neighbour's), and a detection no
-        track took but lying within that gate of a live track starts no new track — the sonar
+        track took but lying within that gate of a confirmed track starts no new track — the sonar
         cannot tell a new fish from the tracked one there (an echo merged with or split from a
-        neighbour's).
+        neighbour's). The price: a fish that stays within a cell of a tracked one starts its
+        own track only once they part.
     resolution_cells : float
         c above; 0 turns the resolution gate off.
     motion : object, optional
