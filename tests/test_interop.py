@@ -19,7 +19,7 @@ from .test_cli import abacus
 C, F0, B, FS = 1500.0, 200e3, 20e3, 80e3
 
 
-def _recording(path, *, az_deg=10.0, el_deg=0.5, range_m=18.0, pings=3, **override):
+def _recording(path, *, az_deg=10.0, el_deg=0.5, range_m=18.0, pings=3, ns=2048, **override):
     """A .mat recording of a point target by a 200 kHz sonar unlike ABACUS: two subarrays of 8
     elements at 0.6 λ pitch, 2 λ apart, an 8-element transmitter; echoes computed here from the
     two-way delay of every element (the LFM replica delayed, carrier phase −2π f0 τ)."""
@@ -32,7 +32,7 @@ def _recording(path, *, az_deg=10.0, el_deg=0.5, range_m=18.0, pings=3, **overri
     tx = np.c_[np.zeros(8), (np.arange(8) - 3.5) * 0.5 * lam, np.zeros(8)]
     th, ph = np.radians(az_deg), np.radians(el_deg)
     p = range_m * np.array([np.cos(ph) * np.sin(th), np.sin(ph), np.cos(ph) * np.cos(th)])
-    t0, ns = 0.01, 2048
+    t0 = 0.01
     ts = t0 + np.arange(ns) / FS
     X = np.zeros((pings, 16, ns), complex)
     for k in range(16):
