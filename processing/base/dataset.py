@@ -38,7 +38,8 @@ from processing.base.contract import (CONVENTIONS, ELEMENT_GROUP, ENVIRONMENT_GR
 
 __all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "ping_indices", "TRUTH_GROUP",
            "write_tree", "write_dataset", "check_finite", "NAN_MEANS", "open_tree", "tree_pings", "source_of", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
-           "read_record", "beam_samples", "LEGACY_ELEMENT_GROUP", "as_tree", "group_of", "has_group"]
+           "read_record", "beam_samples", "LEGACY_ELEMENT_GROUP", "as_tree", "group_of", "has_group",
+           "missing_variables"]
 
 FORMATS = ("netcdf", "zarr")
 
@@ -495,8 +496,23 @@ def beam_samples(ds: xr.Dataset, *, where: str = "") -> PairedSamples:
         raise DatasetError(f"{where}/backscatter_r/_i: {exc}") from None
 
 
+def missing_variables(tree: xr.DataTree) -> list:
+    """The variables processing cannot do without (the contract's mandatory ones) that a
+    dataset lacks, as ``/group/variable`` paths, in the table's order (empty: none missing)."""
+    from processing.base.contract import GROUPS
+    out = []
+    for path, spec in GROUPS.items():
+        names = [v.name for v in spec.variables if v.mandatory]
+        if not names:
+            continue
+        ds = group_of(tree, path.strip("/"))
+        out += [f"{path}/{n}" for n in names if ds is None or n not in ds.variables]
+    return out
+
+
 def read_record(tree: xr.DataTree, *, source: str = "") -> SonarRecord:
-    """The processing view of a dataset; every missing or malformed piece is named.
+    """The processing view of a dataset; every missing or malformed piece is named (every
+    missing variable in one message).
 
     Raises
     ------
@@ -504,14 +520,20 @@ def read_record(tree: xr.DataTree, *, source: str = "") -> SonarRecord:
     """
     where = source or "dataset"
     eg = ELEMENT_GROUP
-    try:
-        node = tree[eg]
-    except KeyError:
-        if has_group(tree, LEGACY_ELEMENT_GROUP):
-            raise DatasetError(f"{where}: the previous abacus layout (/{LEGACY_ELEMENT_GROUP}); "
-                               f"bring it to SONAR-netCDF4 with `abacus convert IN OUT`") from None
-        raise DatasetError(f"{where}: missing group /{eg} (per-element samples)") from None
-    ds = node.ds
+    if not has_group(tree, eg) and has_group(tree, LEGACY_ELEMENT_GROUP):
+        raise DatasetError(f"{where}: the previous abacus layout (/{LEGACY_ELEMENT_GROUP}); "
+                           f"bring it to SONAR-netCDF4 with `abacus convert IN OUT`")
+    from processing.base.echosounder import echosounder_model
+    model = echosounder_model(tree)
+    if model is not None:
+        raise DatasetError(f"{where}: an {model} file converted by echopype: one channel per transducer "
+                           f"(power, angles or sector samples), not the per-element samples of an array that "
+                           f"imaging, detection and counting need; `abacus sv` calibrates it")
+    missing = missing_variables(tree)
+    if missing:
+        raise DatasetError(f"{where}: lacks {len(missing)} variable{'s' if len(missing) > 1 else ''} processing "
+                           f"needs: {', '.join(missing)} (docs/dataset.md)")
+    ds = tree[eg].ds
     samples = beam_samples(ds, where=f"{where}: /{eg}")
     if not samples.all_finite():
         raise DatasetError(f"{where}: /{eg}/backscatter_r/_i contain NaN or inf samples")

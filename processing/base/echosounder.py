@@ -29,7 +29,7 @@ from processing.base.contract import ELEMENT_GROUP, ENVIRONMENT_GROUP, SONAR_GRO
 from processing.base.dataset import DatasetError, group_of
 
 __all__ = ["SIMRAD_MODELS", "echosounder_model", "check_echosounder", "PowerRecord", "read_power_record",
-           "is_power_record", "ECHOSOUNDER_NEEDS"]
+           "is_power_record", "ECHOSOUNDER_NEEDS", "annotate_missing", "FOREIGN_NAN_MEANS"]
 
 #: sonar models (the root's ``keywords``, echopype's ``sonar_model``) -> the family read here
 SIMRAD_MODELS = {"EK60": "EK60", "ES70": "EK60", "EK80": "EK80", "ES80": "EK80", "EA640": "EK80"}
@@ -117,7 +117,7 @@ def check_echosounder(tree: xr.DataTree, *, source: str = "") -> str:
         if split.any():
             missing += [f"/{_BG}/{n}" for n in SPLIT_BEAM_NEEDS if n not in bg.variables]
     if missing:
-        raise DatasetError(f"{where}: a {model} file ({enc} samples) lacks {len(missing)} variable"
+        raise DatasetError(f"{where}: an {model} file ({enc} samples) lacks {len(missing)} variable"
                            f"{'s' if len(missing) > 1 else ''} calibration needs: {', '.join(missing)} "
                            f"(as echopype's open_raw(..., sonar_model={model!r}).to_netcdf writes them)")
     dims = tuple(bg["backscatter_r"].dims)
@@ -244,3 +244,27 @@ def read_power_record(tree: xr.DataTree, *, source: str = "") -> PowerRecord:
     return PowerRecord(model, channels.astype(str), ping_time, power, per["sample_interval"], c, alpha,
                        per["transmit_power"], tau, take["gain_correction"], take["sa_correction"],
                        freq, psi, where)
+
+
+#: what NaN means in a file echopype converted (its convention: a value the raw file did not hold)
+FOREIGN_NAN_MEANS = "not recorded: echopype writes NaN where the raw file holds no value"
+
+
+def annotate_missing(tree: xr.DataTree) -> xr.DataTree:
+    """A copy of a foreign file whose NaN are documented: every float variable holding NaN gets
+    ``nan_means`` (:data:`FOREIGN_NAN_MEANS`) unless it has one, so that abacus' writer, which
+    refuses unexplained NaN (:func:`processing.base.dataset.check_finite`), writes the file back
+    with its values unchanged."""
+    from processing.base.dataset import NAN_MEANS
+    out = tree.copy()
+    for node in out.subtree:
+        ds = node.to_dataset(inherit=False)
+        changed = False
+        for name, var in ds.data_vars.items():
+            if var.dtype.kind in "fc" and NAN_MEANS not in var.attrs and var.size \
+                    and not np.all(np.isfinite(var.values)):
+                ds[name].attrs = {**var.attrs, NAN_MEANS: FOREIGN_NAN_MEANS}
+                changed = True
+        if changed:
+            node.dataset = ds
+    return out
