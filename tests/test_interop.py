@@ -227,3 +227,21 @@ def test_a_sonar_netcdf4_file_written_with_plain_xarray_is_read(tmp_path):
     t["Sonar"].dataset = t["Sonar"].to_dataset(inherit=False).drop_vars("tx_element_weight")
     with pytest.raises(processing.DatasetError, match="tx_element_weight"):
         processing.detect(t)
+
+
+def test_a_split_recording_images_its_whole_record_and_finds_a_target_at_35_m(tmp_path):
+    """A .mat recording split into subarrays A and B, 7.5–45.9 m recorded, a target at 35 m:
+    without a scene the image spans the whole record (not the thesis' 13–26 m default), and the
+    target is located at its range within a quarter of the 3.75 cm range resolution and its
+    azimuth within 0.25°."""
+    _recording(tmp_path / "far.mat", range_m=35.0, pings=1, ns=4096)
+    tree = processing.open_record(tmp_path / "far.mat")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        im = processing.images_of(processing.image(tree))
+        d = processing.detections_of(processing.detect(tree))
+    assert set(im.groups) == {"A", "B"}
+    assert im.range_m[0] < 8.0 and im.range_m[-1] > 45.0
+    i = int(np.argmax(d["amplitude"].values))
+    assert abs(float(d["range_m"][i]) - 35.0) < 0.25 * C / (2 * B)
+    assert abs(np.degrees(float(d["azimuth_rad"][i])) - 10.0) < 0.25

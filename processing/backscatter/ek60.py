@@ -13,8 +13,8 @@ equivalent two-way beam angle (dB re 1 sr) of the calibration, S_a its correctio
 integrated pulse (the sa_correction), τ the nominal pulse duration, λ = c / f, α the absorption
 (dB/m). The range of sample k is r = k Δt c / 2 (echopype's ``echo_range``); the time-varied gain
 uses r' = r − Δr_TVG, the EK60's two-sample delay Δr_TVG = 2 · Δt c / 2 (echopype's
-``range_mod_TVG_EK``; the EK80's GPT transceivers the same), or c τ / 4 for the EK80's WBTs.
-r' ≤ 0 (the first samples) has no Sv (NaN, as in echopype).
+``range_mod_TVG_EK``). r' ≤ 0 (the first samples) has no Sv (NaN, as in echopype). EK80 files
+(other range shifts, complex samples) are read and checked but left to echopype's calibration.
 """
 from __future__ import annotations
 

@@ -218,10 +218,11 @@ def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int 
         negative after noise subtraction: average *this* elsewhere) on (ping_row, range_cell,
         beam), with ``cell_range_m``. Always kept for a Simrad power record.
 
-    A Simrad power record converted by echopype (EK60; EK80 in power mode,
-    :mod:`processing.base.echosounder`) is calibrated sample by sample with the Simrad/echopype
-    equation (:mod:`processing.backscatter.ek60`): each channel is one beam, its cells the
-    samples, the MVBS bins start at 0 m of ``echo_range`` and skip samples without Sv.
+    An EK60 power record converted by echopype (:mod:`processing.base.echosounder`) is
+    calibrated sample by sample with the Simrad/echopype equation
+    (:mod:`processing.backscatter.ek60`): each channel is one beam, its cells the samples, the
+    MVBS bins start at 0 m of ``echo_range`` and skip samples without Sv. An EK80 file is
+    refused by name (echopype calibrates it).
 
     Returns
     -------

@@ -129,8 +129,9 @@ def check_echosounder(tree: xr.DataTree, *, source: str = "") -> str:
 
 
 def is_power_record(tree: xr.DataTree) -> bool:
-    """Whether the dataset is a Simrad power/angle record (EK60, or EK80 power mode)."""
-    return echosounder_model(tree) is not None and _encoding(group_of(tree, _BG)) == "power"
+    """Whether the dataset is a Simrad file echopype converted, which :func:`read_power_record`
+    reads (EK60 power and angles) or refuses by name (EK80)."""
+    return echosounder_model(tree) is not None
 
 
 @dataclass(frozen=True, eq=False)
@@ -200,20 +201,22 @@ def _per_ping(var: xr.DataArray, channels, ping_time, where: str) -> np.ndarray:
 
 
 def read_power_record(tree: xr.DataTree, *, source: str = "") -> PowerRecord:
-    """The power record of a Simrad file echopype converted (EK60; EK80 in power mode).
+    """The power record of an EK60 file echopype converted.
 
     Raises
     ------
     DatasetError
-        Missing variables (all named, :func:`check_echosounder`), complex samples (EK80 WBT:
-        not a power record) or values that are not finite where calibration needs them.
+        Missing variables (all named, :func:`check_echosounder`), an EK80 file (its range
+        shift and complex samples are echopype's to calibrate: named) or values that are not
+        finite where calibration needs them.
     """
     where = source or "dataset"
     model = check_echosounder(tree, source=where)
     bg = group_of(tree, _BG)
-    if _encoding(bg) != "power":
-        raise DatasetError(f"{where}: an {model} file of complex samples (WBT); abacus calibrates power "
-                           f"records (EK60, EK80 power mode): give echopype's compute_Sv the complex file")
+    if model != "EK60" or _encoding(bg) != "power":
+        what = "complex samples (WBT)" if _encoding(bg) == "complex" else "power samples"
+        raise DatasetError(f"{where}: an {model} file of {what}; abacus calibrates EK60 power records "
+                           f"(checked against echopype's compute_Sv): give echopype's compute_Sv this file")
     env, vend = group_of(tree, ENVIRONMENT_GROUP), group_of(tree, _VEND)
     channels = np.asarray(bg["channel"].values)
     ping_time = np.asarray(bg["ping_time"].values)
