@@ -15,6 +15,7 @@ use, so ``import processing`` is cheap)::
     tracks_of(tree) -> xarray.Dataset          # one row per track, and per track point
     open_tree(path), write_tree(tree, path)    # the dataset I/O (atomic writes)
     open_record(path) -> DataTree              # any recording read and checked (.mat, echopype EK60/EK80, ...)
+    echopype_view(tree) -> DataTree            # the calibrated image in the EK60 convention echopype calibrates
     ProcessingSettings, load_settings(path)
 """
 from __future__ import annotations
@@ -37,7 +38,7 @@ _API = {
     "load_settings": "processing.settings",
     "track": "processing.tracking.tracks", "tracks_of": "processing.tracking.tracks",
     "sv": "processing.backscatter.sv", "RecordChain": "processing.pipeline", "as_tree": "processing.base.dataset",
-    "open_record": "processing.base.convert",
+    "open_record": "processing.base.convert", "echopype_view": "processing.backscatter.echopype_view",
 }
 
 __getattr__, __dir__, __all__ = public_api("processing", _API, globals(), extra=())

@@ -245,3 +245,29 @@ def test_a_split_recording_images_its_whole_record_and_finds_a_target_at_35_m(tm
     i = int(np.argmax(d["amplitude"].values))
     assert abs(float(d["range_m"][i]) - 35.0) < 0.25 * C / (2 * B)
     assert abs(np.degrees(float(d["azimuth_rad"][i])) - 10.0) < 0.25
+
+
+def test_the_echopype_view_calibrates_back_to_abacus_sv(tmp_path):
+    """`abacus sv --echopype`: the image in the EK60's convention. Through the EK60 equation
+    (processing/backscatter/ek60.py, which matches echopype's compute_Sv on a real EK60 file to
+    0.1 dB: tests/test_echosounder.py) it gives back abacus' Sv of every cell to 1e-6 dB, the same
+    cells without Sv, and each cell's range within half a range cell; the view holds what
+    echopype's combine_echodata needs (Provenance's conversion_software_name, one time axis)."""
+    from processing.backscatter.ek60 import sv_of_power
+    from processing.base.echosounder import read_power_record
+    processing.write_tree(acoustics.simulate(acoustics.load_scene("two_targets"), pings=range(2)),
+                          tmp_path / "s.nc")
+    r = abacus("sv", "s.nc", "-o", "p.nc", "--echopype", "view.nc", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    cells = open_tree(tmp_path / "p.nc")["Processing/Sv"].ds
+    view = processing.open_record(tmp_path / "view.nc")
+    assert view.attrs["keywords"] == "EK60"
+    assert view["Provenance"].attrs["conversion_software_name"] == "abacus"
+    sv, rng = sv_of_power(read_power_record(view))                 # (beam, ping, sample)
+    want = cells["Sv"].values.transpose(2, 0, 1)
+    n0 = sv.shape[2] - want.shape[2]
+    np.testing.assert_array_equal(np.isnan(sv[:, :, n0:]), np.isnan(want))
+    assert np.all(np.isnan(sv[:, :, :n0]))
+    assert np.nanmax(np.abs(sv[:, :, n0:] - want)) < 1e-6
+    r_cells = cells["cell_range_m"].values[0, :, 0]
+    assert np.max(np.abs(rng[0, 0, n0:] - r_cells)) <= 0.5 * np.median(np.diff(r_cells)) + 1e-9

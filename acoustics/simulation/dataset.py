@@ -67,7 +67,11 @@ def provenance_dataset(scene, seed: int, log, rays_cast: dict | None = None) -> 
                "scene_file": str(scene.source_path or ""), "seed": int(seed),
                "stages_run": ",".join(names), "versions": json.dumps(versions()),
                "rays_cast_json": json.dumps(rays_cast or {}),
-               "command": " ".join(sys.argv)})
+               "command": " ".join(sys.argv),
+               # what echopype's Provenance holds (combine_echodata reads it)
+               "conversion_software_name": "abacus",
+               "conversion_software_version": str(versions().get("abacus", "")),
+               "conversion_time": _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()})
 
 
 def _ping_times(scene, pings):

@@ -292,7 +292,12 @@ def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int 
          "layer_start_m": ("layer", layers[:, 0]), "layer_stop_m": ("layer", layers[:, 1]),
          "beam_angle_deg": ("beam", beams)},
         attrs={"image_group": group, "noise_sigma_counts": float(sigma),
-               "range_energy_width_m": l_r, "range_bin_m": float(range_bin_m), "ping_bin": int(ping_bin)})
+               "range_energy_width_m": l_r, "range_bin_m": float(range_bin_m), "ping_bin": int(ping_bin),
+               "calibration_gain_counts_m": float(cal.gain_counts_m),
+               "absorption_db_per_m": float(cal.absorption_db_per_m),
+               "sound_speed_m_s": float(rec.sound_speed_m_s), "center_frequency_hz": float(rec.center_frequency_hz)})
+    ds["solid_angle_sr"] = ("beam", np.asarray(psi, float))
+    ds["solid_angle_sr"].attrs.update(units="sr", long_name="two-way equivalent solid angle of each beam (Ψ_b)")
     ds["Sv_mean"].attrs.update(units="dB re 1 m-1", nan_means="noise only (s_v ≤ 0 after noise subtraction)")
     ds["s_v_mean"].attrs["units"] = "m-1"
     ds["NASC"].attrs.update(units="m2 nmi-2", long_name="4π 1852² ∫ s_v dr along the beam over the layer")

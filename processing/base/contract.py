@@ -274,6 +274,9 @@ _PROVENANCE = Group(f"/{PROVENANCE_GROUP}", "what made the data (simulated data)
     Attribute("stages_run", "the stages that ran, comma-separated"),
     Attribute("rays_cast_json", "rays cast per purpose (JSON)"),
     Attribute("command", "the command line"),
+    Attribute("conversion_software_name", "what wrote the file (abacus), as echopype's Provenance says it"),
+    Attribute("conversion_software_version", "its version"),
+    Attribute("conversion_time", "when (ISO 8601, UTC)"),
 ))
 
 _SONAR = Group(f"/{SONAR_GROUP}", "the sonar: pulse, transmitter, calibration, beam groups", (

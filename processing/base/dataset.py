@@ -39,7 +39,7 @@ from processing.base.contract import (CONVENTIONS, ELEMENT_GROUP, ENVIRONMENT_GR
 __all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "ping_indices", "TRUTH_GROUP",
            "write_tree", "write_dataset", "check_finite", "NAN_MEANS", "open_tree", "tree_pings", "source_of", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
            "read_record", "beam_samples", "LEGACY_ELEMENT_GROUP", "as_tree", "group_of", "has_group",
-           "missing_variables"]
+           "missing_variables", "echosounder_model", "SIMRAD_MODELS"]
 
 FORMATS = ("netcdf", "zarr")
 
@@ -496,6 +496,28 @@ def beam_samples(ds: xr.Dataset, *, where: str = "") -> PairedSamples:
         raise DatasetError(f"{where}/backscatter_r/_i: {exc}") from None
 
 
+#: sonar models (the root's ``keywords``, echopype's ``sonar_model``) -> the family read here
+SIMRAD_MODELS = {"EK60": "EK60", "ES70": "EK60", "EK80": "EK80", "ES80": "EK80", "EA640": "EK80"}
+
+
+def echosounder_model(tree: xr.DataTree) -> str | None:
+    """"EK60" or "EK80" for a file echopype converted from a Simrad echosounder (its root
+    ``keywords`` or /Sonar ``sonar_model`` names one of :data:`SIMRAD_MODELS`), else None.
+
+    abacus' own files (one channel whose beams are elements, ``element_subarray``) are never
+    taken for one, whatever their keywords say.
+    """
+    bg = group_of(tree, ELEMENT_GROUP)
+    if bg is not None and "element_subarray" in bg.variables:
+        return None
+    sonar = group_of(tree, SONAR_GROUP)
+    for name in (tree.attrs.get("keywords"), sonar.attrs.get("sonar_model") if sonar is not None else None):
+        family = SIMRAD_MODELS.get(str(name or "").strip().upper())
+        if family:
+            return family
+    return None
+
+
 def missing_variables(tree: xr.DataTree) -> list:
     """The variables processing cannot do without (the contract's mandatory ones) that a
     dataset lacks, as ``/group/variable`` paths, in the table's order (empty: none missing)."""
@@ -523,7 +545,6 @@ def read_record(tree: xr.DataTree, *, source: str = "") -> SonarRecord:
     if not has_group(tree, eg) and has_group(tree, LEGACY_ELEMENT_GROUP):
         raise DatasetError(f"{where}: the previous abacus layout (/{LEGACY_ELEMENT_GROUP}); "
                            f"bring it to SONAR-netCDF4 with `abacus convert IN OUT`")
-    from processing.base.echosounder import echosounder_model
     model = echosounder_model(tree)
     if model is not None:
         raise DatasetError(f"{where}: an {model} file converted by echopype: one channel per transducer "

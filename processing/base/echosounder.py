@@ -26,13 +26,10 @@ import numpy as np
 import xarray as xr
 
 from processing.base.contract import ELEMENT_GROUP, ENVIRONMENT_GROUP, SONAR_GROUP, TRUTH_GROUP
-from processing.base.dataset import DatasetError, group_of
+from processing.base.dataset import SIMRAD_MODELS, DatasetError, echosounder_model, group_of
 
 __all__ = ["SIMRAD_MODELS", "echosounder_model", "check_echosounder", "PowerRecord", "read_power_record",
            "is_power_record", "ECHOSOUNDER_NEEDS", "annotate_missing", "FOREIGN_NAN_MEANS"]
-
-#: sonar models (the root's ``keywords``, echopype's ``sonar_model``) -> the family read here
-SIMRAD_MODELS = {"EK60": "EK60", "ES70": "EK60", "EK80": "EK80", "ES80": "EK80", "EA640": "EK80"}
 
 _BG = ELEMENT_GROUP           # echopype's first beam group is the contract's: /Sonar/Beam_group1
 _VEND = TRUTH_GROUP           # /Vendor_specific: abacus' ground truth, a Simrad file's calibration
@@ -56,24 +53,6 @@ ECHOSOUNDER_NEEDS = {
 #: what a split-beam power channel adds (echopype's beam_type 1: angles recorded)
 SPLIT_BEAM_NEEDS = ("angle_alongship", "angle_athwartship", "angle_sensitivity_alongship",
                     "angle_sensitivity_athwartship", "angle_offset_alongship", "angle_offset_athwartship")
-
-
-def echosounder_model(tree: xr.DataTree) -> str | None:
-    """"EK60" or "EK80" for a file echopype converted from a Simrad echosounder (its root
-    ``keywords`` or /Sonar ``sonar_model`` names one of :data:`SIMRAD_MODELS`), else None.
-
-    abacus' own files (one channel whose beams are elements, ``element_subarray``) are never
-    taken for one, whatever their keywords say.
-    """
-    bg = group_of(tree, _BG)
-    if bg is not None and "element_subarray" in bg.variables:
-        return None
-    sonar = group_of(tree, SONAR_GROUP)
-    for name in (tree.attrs.get("keywords"), sonar.attrs.get("sonar_model") if sonar is not None else None):
-        family = SIMRAD_MODELS.get(str(name or "").strip().upper())
-        if family:
-            return family
-    return None
 
 
 def _encoding(bg: xr.Dataset | None) -> str:
