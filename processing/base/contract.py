@@ -265,6 +265,10 @@ _PROVENANCE = Group(f"/{PROVENANCE_GROUP}", "what made the data (simulated data)
        long_name="wall time per stage"),
     _v("stage_calls", "stage", "1", "i", "times each stage was entered"),
     _c("stage", "stage", None, "U", "the stages that ran"),
+    _v("source_filenames", "filenames", None, "U",
+       "the file the data came from (the scene file, or the recording converted), as echopype's "
+       "Provenance holds it (its combine_echodata reads it)"),
+    _c("filenames", "filenames", None, "i", "index of the source files"),
 ), (
     Attribute("scene_text", "the fully resolved scene (YAML)"),
     Attribute("scene_sha256", "its SHA-256"),

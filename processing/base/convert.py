@@ -32,7 +32,7 @@ import numpy as np
 import xarray as xr
 
 from processing.base.contract import (BEAM_GROUP_NAME, CHANNEL, ELEMENT_GROUP, ENVIRONMENT_GROUP, GROUPS,
-                                      LEGACY_ELEMENT_GROUP, LEGACY_TRUTH_GROUP, ROOT_GROUP, SONAR_GROUP,
+                                      LEGACY_ELEMENT_GROUP, LEGACY_TRUTH_GROUP, PROVENANCE_GROUP, ROOT_GROUP, SONAR_GROUP,
                                       TRUTH_GROUP, node_path)
 from processing.base.dataset import DatasetError
 from processing.base.groups import build_group, complex_pair, conform_group, per_ping, tree_of
@@ -205,7 +205,14 @@ def record_tree(samples, *, rate_hz: float, center_frequency_hz: float, bandwidt
     root = {"keywords": "", "title": title, "data_kind": "recorded",
             "date_created": _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat(),
             "source": str(source)}
+    created = root["date_created"]
+    from processing.base.lazy import distribution_version
+    # what echopype's Provenance holds: its combine_echodata reads it
+    provenance = {"conversion_software_name": "abacus",
+                  "conversion_software_version": distribution_version("abacus"), "conversion_time": created}
     tree = tree_of({ROOT_GROUP: build_group(ROOT_GROUP, {}, attrs=root),
+                    PROVENANCE_GROUP: build_group(PROVENANCE_GROUP, {"source_filenames": [str(source)],
+                                                                     "filenames": [0]}, attrs=provenance),
                     ENVIRONMENT_GROUP: build_group(ENVIRONMENT_GROUP, env),
                     SONAR_GROUP: build_group(SONAR_GROUP, sonar, attrs={
                         "sonar_manufacturer": "", "sonar_model": "", "sonar_serial_number": "",
