@@ -279,6 +279,12 @@ def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int 
     layers = np.asarray(layers_m if layers_m is not None else [[im.range_m[0], im.range_m[-1] + 1e-9]],
                         float).reshape(-1, 2)
     _check_layers(layers, im.range_m, mags.shape, range_bin_m, ping_bin, max_memory_gb)
+    if cells:        # Sv, s_v and their ranges, float64, and the dB copy made on the way
+        from processing.base.resources import Estimate, check_resources
+        size = float(mags.size) * 8.0 * 4
+        check_resources(Estimate(size, 0.0, [("Sv cells", size)],
+                                 keys="the pings (the cells of every ping are kept: give fewer pings)"),
+                        what="the Sv cells (--cells)", max_memory_gb=max_memory_gb)
     grid, r_edges, p_edges = mean_volume_backscatter(s_v, im.range_m, range_bin_m=range_bin_m,
                                                      ping_bin=ping_bin)
     area = nasc(s_v, im.range_m, layers)
