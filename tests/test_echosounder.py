@@ -103,6 +103,24 @@ def test_an_incomplete_ek60_file_names_every_missing_variable_at_once(tmp_path):
     assert "4 variables" in r.stderr
 
 
+def test_a_single_beam_ek60_channel_reads_without_angles(tmp_path, ek60_sv):
+    """The same channel declared single-beam (echopype's beam_type 0) and without the
+    split-beam angles reads, and its Sv is the split-beam file's (Sv uses no angle); declared
+    split-beam, the missing angles are named."""
+    tree = xr.open_datatree(EK60).load()
+    angles = ["angle_alongship", "angle_athwartship"]
+    single = _drop(tree, {"Sonar/Beam_group1": angles})
+    bg = single["Sonar/Beam_group1"].to_dataset(inherit=False)
+    bg["beam_type"] = bg["beam_type"] * 0
+    single["Sonar/Beam_group1"].dataset = bg
+    single.to_netcdf(tmp_path / "single.nc")
+    sv = processing.sv(processing.open_record(tmp_path / "single.nc"), range_bin_m=5.0, ping_bin=5)[SV_GROUP].ds
+    np.testing.assert_array_equal(sv["Sv"].values, ek60_sv["Sv"].values)
+    _drop(tree, {"Sonar/Beam_group1": angles}).to_netcdf(tmp_path / "split.nc")
+    with pytest.raises(processing.DatasetError, match="angle_alongship, /Sonar/Beam_group1/angle_athwartship"):
+        processing.open_record(tmp_path / "split.nc")
+
+
 def _ek80(*, drop=()) -> xr.DataTree:
     """An EK80 file in echopype's layout (echodata/convention/1.0.yml, as open_raw(...,
     sonar_model="EK80") writes complex WBT samples): a split-beam channel of 4 sectors and a
