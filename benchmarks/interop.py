@@ -174,6 +174,8 @@ def main(argv=None) -> int:
         print(f"error: the echopype check failed in {args.echopype_python}:\n{r.stderr[-3000:]}", file=sys.stderr)
         return 1
     res = json.loads(r.stdout.strip().splitlines()[-1])
+    for key in [k for k in res if k.startswith("repr")]:    # the temporary folder: not the point
+        res[key] = res[key].replace(str(d), "<tmp>")
     combined = (f"**works**, Beam_group1 sizes {res['combine_recordings']}, the samples equal to the two "
                 f"files' end to end: {res['combine_recordings_equal']}" if isinstance(res["combine_recordings"], dict)
                 else f"`{res['combine_recordings']}`")
