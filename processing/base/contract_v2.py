@@ -217,6 +217,10 @@ _ENV = NcGroup(ENVIRONMENT, "the water", (
        _POSITIVE),
     _v("sound_speed_indicative", "", "float", "m/s", "Indicative sound speed", "M",
        ("standard_name", "speed_of_sound_in_sea_water"), _POSITIVE),
+    _v("temperature", "", "double", "degree_Celsius", "vendor: where the absorption came from", "V"),
+    _v("salinity", "", "double", "PSU", "vendor: where the absorption came from", "V"),
+    _v("depth", "", "double", "m", "vendor: depth at which absorption was evaluated", "V"),
+    _v("ph", "", "double", "1", "vendor: where the absorption came from", "V"),
 ))
 
 _PLATFORM = NcGroup(PLATFORM, "the transducers: a transmitter and a receiver, and the sonar's pose", (

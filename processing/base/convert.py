@@ -37,7 +37,7 @@ from processing.base.contract import (BEAM_GROUP_NAME, CHANNEL, ELEMENT_GROUP, E
 from processing.base.dataset import DatasetError
 from processing.base.groups import build_group, complex_pair, conform_group, per_ping, tree_of
 
-__all__ = ["record_tree", "from_legacy", "read_mat", "check_record", "MAT_FIELDS", "CHANNEL",
+__all__ = ["record_tree", "from_legacy", "read_mat", "open_record", "check_record", "MAT_FIELDS", "CHANNEL",
            "SOUND_SPEED_M_S", "PING_TIME_SPAN_S", "MAT_MAX_BYTES"]
 
 #: sound speeds a record may claim (m/s): water from fresh to salt, 0 to 40 °C, at any depth a
@@ -619,3 +619,28 @@ def read_mat(path, *, max_memory_gb: float | None = None) -> xr.DataTree:
         absorption_db_per_m=_scalar(m, "alpha", where, required=False),
         ping_time_s=opt.get("ping_time"), mode=mode, tx_beamwidth_deg=opt.get("tx_beamwidth_deg"),
         title=f"converted from {path.name}", source=where)
+
+
+def open_record(path, *, max_memory_gb: float | None = None) -> xr.DataTree:
+    """A recording or dataset of any layout abacus reads, as a dataset of the contract: a
+    MATLAB ``.mat`` recording, a SONAR-netCDF4 2.0 file
+    (:func:`processing.base.sonar_netcdf2_read.read_sonar_netcdf2`), the previous abacus
+    layout, or a 1.0 dataset (as it is).
+
+    Raises
+    ------
+    DatasetError
+        Unreadable, or lacking what processing needs (every missing piece named at once).
+    """
+    from processing.base.dataset import has_group, open_tree
+    from processing.base.sonar_netcdf2 import is_sonar_netcdf2
+    path = Path(path)
+    if path.suffix.lower() == ".mat":
+        return read_mat(path, max_memory_gb=max_memory_gb)
+    if is_sonar_netcdf2(path):
+        from processing.base.sonar_netcdf2_read import read_sonar_netcdf2
+        tree = read_sonar_netcdf2(path)
+        check_record(tree, source=str(path))
+        return tree
+    tree = open_tree(path, max_memory_gb=max_memory_gb, work_factor=2.0)
+    return from_legacy(tree, source=str(path)) if has_group(tree, LEGACY_ELEMENT_GROUP) else tree

@@ -397,7 +397,8 @@ def _file_values(tree, targets, parameters, grid, command) -> dict:
 
     alpha = _get(env, "absorption_indicative")
     freq = _get(env, "frequency")
-    env_vals = {"sound_speed_indicative": c}
+    env_vals = {"sound_speed_indicative": c,
+                **{k: _first(env, k) for k in ("temperature", "salinity", "depth", "ph") if k in env.variables}}
     if alpha is not None:
         alpha = np.atleast_1d(np.asarray(alpha, float))
         env_vals.update(absorption_indicative=alpha,
@@ -623,13 +624,6 @@ def check_file(path) -> list:
 def is_sonar_netcdf2(path) -> bool:
     """Whether ``path`` is a netCDF4 file that says it follows SONAR-netCDF4 2.x (its root
     attribute ``sonar_convention_version``); False for anything else, never an error."""
-    import netCDF4
+    from processing.base.dataset import sonar_convention_version
     p = Path(path)
-    if not p.is_file():
-        return False
-    try:
-        with netCDF4.Dataset(p) as nc:
-            return str(getattr(nc, "sonar_convention_version", "")).strip().startswith("2")
-    except Exception:        # not netCDF4 at all: the other readers say so
-        return False
-
+    return p.is_file() and sonar_convention_version(p).startswith("2")
