@@ -260,7 +260,10 @@ def _tree(nc, path, gpath, bg, env, sonar, btype, abacus) -> xr.DataTree:
     if _var(bg, "transmit_duration_nominal") is not None:
         svals["transmit_duration_nominal"] = _one(bg["transmit_duration_nominal"], "")
     for a in ("major", "minor"):
+        # a monostatic transducer (a foreign file) transmits with its receive beam
         v = _var(bg, f"beamwidth_transmit_{a}")
+        if (v is None or not np.any(np.isfinite(_array(v)))) and not abacus:
+            v = _var(bg, f"beamwidth_receive_{a}")
         if v is not None and np.any(np.isfinite(_array(v))):
             svals[f"beamwidth_transmit_{a}"] = _one(v, "")
     for name in ("calibration_gain", "two_way_elevation_width", "calibration_azimuth", "tx_element_width",
