@@ -357,3 +357,14 @@ def test_the_commands_write_and_read_2_0(tmp_path, capsys):
     assert main(["simulate", "two_targets", "--pings", "1", "-o", str(tmp_path / "s.zarr"),
                  "--format", "sonar-netcdf4-2"]) == 2
     assert "name the output *.nc" in capsys.readouterr().err
+
+
+def test_docs_dataset_md_shows_the_2_0_table_as_it_is():
+    """docs/dataset.md's 2.0 tables are contract_v2's own markdown, verbatim (regenerate:
+    python -m processing.base.contract_v2 --markdown)."""
+    from processing.base import contract_v2
+
+    from .conftest import ROOT
+    text = (ROOT / "docs" / "dataset.md").read_text()
+    begin, end = text.index(contract_v2.MARKDOWN_BEGIN), text.index(contract_v2.MARKDOWN_END)
+    assert text[begin:end + len(contract_v2.MARKDOWN_END)] + "\n" == contract_v2.markdown()
