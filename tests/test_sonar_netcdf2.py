@@ -368,3 +368,39 @@ def test_docs_dataset_md_shows_the_2_0_table_as_it_is():
     text = (ROOT / "docs" / "dataset.md").read_text()
     begin, end = text.index(contract_v2.MARKDOWN_BEGIN), text.index(contract_v2.MARKDOWN_END)
     assert text[begin:end + len(contract_v2.MARKDOWN_END)] + "\n" == contract_v2.markdown()
+
+
+def test_a_moving_platform_and_a_recording_round_trip(tmp_path):
+    """The per-ping pose of a rolling platform (and the ADC's clipping variables) survive 2.0;
+    a .mat recording that gives no absorption is written with the convention's fill value and
+    read back without one; an empty single-target table is written as empty vectors."""
+    from .test_contract import ROLLING_QUANTISED
+    from .test_interop import _recording
+    (tmp_path / "s.yaml").write_text(ROLLING_QUANTISED)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tree = acoustics.simulate(acoustics.load_scene(tmp_path / "s.yaml"), pings=range(2))
+    empty = {k: np.array([]) for k in ("ping", "range_m", "azimuth_deg", "elevation_deg",
+                                         "ts_uncomp_db", "ts_comp_db")}
+    write_sonar_netcdf2(tree, tmp_path / "roll.nc", targets=empty)
+    assert ices_check(tmp_path / "roll.nc", exceptions=DEPARTURES) == []
+    with netCDF4.Dataset(tmp_path / "roll.nc") as nc:
+        assert nc["Sonar/Beam_group1/SingleTarget/single_target_count"][:].ravel().tolist() == [0, 0]
+        roll = nc["Sonar/Beam_group1/platform_roll"][:]
+    np.testing.assert_allclose(roll, tree["Platform"].ds["roll"].values, atol=1e-5)
+    back = open_record(tmp_path / "roll.nc")
+    assert check_tree(back) == []
+    for name in ("ping_sonar_rotation", "ping_sonar_position", "vertical_offset"):
+        np.testing.assert_allclose(back["Platform"].ds[name].values, tree["Platform"].ds[name].values, atol=1e-6)
+    np.testing.assert_array_equal(back[ELEMENT_GROUP].ds["adc_clipped_samples"].values,
+                                  tree[ELEMENT_GROUP].ds["adc_clipped_samples"].values)
+
+    from processing.base.convert import read_mat
+    rec = read_mat(_recording(tmp_path / "r.mat", pings=2))
+    assert "absorption_indicative" not in rec["Environment"].ds
+    write_sonar_netcdf2(rec, tmp_path / "r2.nc")
+    assert ices_check(tmp_path / "r2.nc", exceptions=DEPARTURES) == []
+    again = open_record(tmp_path / "r2.nc")
+    assert "absorption_indicative" not in again["Environment"].ds
+    np.testing.assert_array_equal(np.asarray(beam_samples(again[ELEMENT_GROUP].ds)),
+                                  np.asarray(beam_samples(rec[ELEMENT_GROUP].ds)))

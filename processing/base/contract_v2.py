@@ -366,6 +366,8 @@ _BEAM = NcGroup(BEAM_GROUP_V2, "the receiver's samples: one beam, its elements t
     _v("subbeam_width", "subbeam", "double", "m", "vendor: element widths", "V"),
     _v("subbeam_height", "subbeam", "double", "m", "vendor: element heights", "V"),
     _v("subbeam_rotation", "subbeam", "double", "rad", "vendor: element rotations about z", "V"),
+    _v("adc_clipped_samples", f"{_PT} subbeam", "int", "1", "vendor: samples clipped by the ADC (I or Q)",
+       "V"),
 ), (
     Attribute("beam_mode", "", "vertical", True),
     Attribute("conversion_equation_type", "type_4 (complex samples, matched filter with the pulse "

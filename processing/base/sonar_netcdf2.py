@@ -390,6 +390,8 @@ def _file_values(tree, targets, parameters, grid, command) -> dict:
     for a in ("width", "height", "rotation"):
         if f"element_{a}" in beam.variables:
             bvals[f"subbeam_{a}"] = _get(beam, f"element_{a}")
+    if "adc_clipped_samples" in beam.variables:
+        bvals["adc_clipped_samples"] = _get(beam, "adc_clipped_samples")
     battrs = {k: v for k, v in beam.attrs.items() if k in ("mode", "adc_scale_counts", "adc_quantized",
                                                            "adc_bits", "noise_enabled", "noise_sigma_counts",
                                                            "noise_bandwidth_hz", "receiver_bandwidth_hz")}
@@ -403,6 +405,8 @@ def _file_values(tree, targets, parameters, grid, command) -> dict:
         alpha = np.atleast_1d(np.asarray(alpha, float))
         env_vals.update(absorption_indicative=alpha,
                         frequency=np.atleast_1d(freq) if freq is not None else np.full(alpha.size, f0))
+    else:        # mandatory in 2.0: a recording that does not say it holds the fill value, NaN
+        env_vals.update(absorption_indicative=[np.nan], frequency=[f0])
 
     tx_centre = (txpos * np.abs(txw)[:, None]).sum(0) / np.abs(txw).sum()
     offsets = np.stack([origin + rot @ tx_centre, origin + rot @ pos.mean(0)])

@@ -237,6 +237,8 @@ def _tree(nc, path, gpath, bg, env, sonar, btype, abacus) -> xr.DataTree:
     for a in ("width", "height", "rotation"):
         if _var(bg, f"subbeam_{a}") is not None:
             beams[f"element_{a}"] = _array(bg[f"subbeam_{a}"]).astype(float)
+    if _var(bg, "adc_clipped_samples") is not None:
+        beams["adc_clipped_samples"] = _array(bg["adc_clipped_samples"]).astype(int)
     if abacus:
         eba = _array(bg["equivalent_beam_angle"]).astype(float) if _var(bg, "equivalent_beam_angle") is not None else None
         if eba is not None and np.all(np.isfinite(eba)):
@@ -277,8 +279,9 @@ def _tree(nc, path, gpath, bg, env, sonar, btype, abacus) -> xr.DataTree:
     sattrs["mode"] = mode
 
     env_vals = {"sound_speed_indicative": c}
-    if _var(env, "absorption_indicative") is not None:
-        alpha = np.atleast_1d(_array(env["absorption_indicative"]).astype(float))
+    alpha = np.atleast_1d(_array(env["absorption_indicative"]).astype(float)) \
+        if _var(env, "absorption_indicative") is not None else np.array([np.nan])
+    if np.all(np.isfinite(alpha)):                   # NaN: the file does not know it
         freq = np.atleast_1d(_array(env["frequency"]).astype(float)) if _var(env, "frequency") is not None \
             else np.full(alpha.size, f0)
         env_vals.update(absorption_indicative=alpha, frequency=freq)
