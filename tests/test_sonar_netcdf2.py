@@ -404,3 +404,10 @@ def test_a_moving_platform_and_a_recording_round_trip(tmp_path):
     assert "absorption_indicative" not in again["Environment"].ds
     np.testing.assert_array_equal(np.asarray(beam_samples(again[ELEMENT_GROUP].ds)),
                                   np.asarray(beam_samples(rec[ELEMENT_GROUP].ds)))
+
+
+def test_a_2_0_file_beyond_the_memory_limit_is_refused_before_it_is_read(tmp_path):
+    from processing.base.resources import ResourceError
+    write_ek80_style(tmp_path / "ek.nc")
+    with pytest.raises(ResourceError):
+        open_record(tmp_path / "ek.nc", max_memory_gb=1e-6)

@@ -44,7 +44,7 @@ def command(args) -> int:
     if suffix == ".mat":
         tree = read_mat(src, max_memory_gb=args.max_memory)
     elif is_sonar_netcdf2(src):
-        tree = open_record(src)
+        tree = open_record(src, max_memory_gb=args.max_memory)
     else:
         tree = open_tree(src, max_memory_gb=args.max_memory, work_factor=2.0)
         # a 1.0 dataset is written as 2.0 as it is; anything else must be the previous layout

@@ -639,7 +639,7 @@ def open_record(path, *, max_memory_gb: float | None = None) -> xr.DataTree:
         return read_mat(path, max_memory_gb=max_memory_gb)
     if is_sonar_netcdf2(path):
         from processing.base.sonar_netcdf2_read import read_sonar_netcdf2
-        tree = read_sonar_netcdf2(path)
+        tree = read_sonar_netcdf2(path, max_memory_gb=max_memory_gb)
         check_record(tree, source=str(path))
         return tree
     tree = open_tree(path, max_memory_gb=max_memory_gb, work_factor=2.0)

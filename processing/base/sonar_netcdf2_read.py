@@ -93,7 +93,8 @@ def _cells(var, shape_prefix) -> np.ndarray:
     return a
 
 
-def read_sonar_netcdf2(path, *, beam_group: str = "Beam_group1") -> xr.DataTree:
+def read_sonar_netcdf2(path, *, beam_group: str = "Beam_group1",
+                       max_memory_gb: float | None = None) -> xr.DataTree:
     """A SONAR-netCDF4 2.0 file as a dataset of the 1.0 contract (what processing reads).
 
     Parameters
@@ -101,6 +102,9 @@ def read_sonar_netcdf2(path, *, beam_group: str = "Beam_group1") -> xr.DataTree:
     path : str or Path
     beam_group : str
         The beam group of /Sonar to read (one beam, its sub-beams the elements).
+    max_memory_gb : float, optional
+        The memory limit (default: :func:`processing.base.resources.memory_limit_bytes`): the
+        samples, held as vectors and then as one padded complex array, must fit it.
 
     Returns
     -------
@@ -116,8 +120,16 @@ def read_sonar_netcdf2(path, *, beam_group: str = "Beam_group1") -> xr.DataTree:
         variable; power/angle samples; more than one beam.
     """
     import netCDF4
+
+    from processing.base.resources import Estimate, check_resources
     path = Path(path)
     where = str(path)
+    if not path.is_file():
+        raise DatasetError(f"{path}: no such file")
+    size = float(path.stat().st_size)
+    # the float32 pairs as read (the file's size), then padded into complex64 and the tree's pair
+    check_resources(Estimate(3.0 * size, 0.0, [("samples", size)], keys="the pings in the file"),
+                    what=where, max_memory_gb=max_memory_gb)
     try:
         nc = netCDF4.Dataset(path)
     except Exception as exc:
