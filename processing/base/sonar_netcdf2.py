@@ -528,7 +528,7 @@ def _grid_values(grid: xr.Dataset, times, rot, origin, beam_vals, f0, minor_widt
         "ping_axis_interval_type": np.int8(3), "ping_axis_interval_value": float(grid.attrs.get("ping_bin", np.nan)),
         "range_axis_interval_type": np.int8(0), "range_axis_interval_value": float(grid.attrs.get("range_bin_m", np.nan)),
         "cell_ping_time": np.round(cell_time).astype(np.uint64)[:, None],
-        "integrated_backscatter": np.transpose(sv, (0, 1, 2)),
+        "integrated_backscatter": sv,            # (ping bin, range bin, formed beam = frequency entry)
         "sv_linear": lin,
         "beamwidth_receive_major": np.full((n_pb, n_b), np.nan),
         "beamwidth_receive_minor": np.full((n_pb, n_b), np.nan if minor_width is None else float(np.nanmean(minor_width))),
