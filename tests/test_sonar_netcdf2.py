@@ -186,6 +186,7 @@ def test_the_1_0_dataset_of_the_same_run_is_unchanged(run):
 def test_an_abacus_2_0_file_reads_back_to_the_same_record(run):
     tree = open_record(run["v2"])
     assert check_tree(tree) == []
+    assert tree.attrs["keywords"] == run["tree"].attrs["keywords"] == "ABACUS"   # echopype's sonar model
     a = np.asarray(beam_samples(run["tree"][ELEMENT_GROUP].ds))
     b = np.asarray(beam_samples(tree[ELEMENT_GROUP].ds))
     np.testing.assert_array_equal(a, b)

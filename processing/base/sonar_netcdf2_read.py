@@ -303,7 +303,9 @@ def _tree(nc, path, gpath, bg, env, sonar, btype, abacus) -> xr.DataTree:
 
     now = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()
     root = {"title": str(getattr(nc, "title", "")) or f"SONAR-netCDF4 2.0: {path.name}",
-            "keywords": str(getattr(nc, "keywords", "")), "summary": str(getattr(nc, "summary", "")),
+            # 1.0's keywords are the sonar model, as echopype reads them (2.0's list the sonar type too)
+            "keywords": str(getattr(sonar, "sonar_model", "") or getattr(nc, "keywords", "")),
+            "summary": str(getattr(nc, "summary", "")),
             "date_created": str(getattr(nc, "date_created", now)),
             "data_kind": str(getattr(nc, "data_kind", "recorded")), "source": str(path),
             "converted_from": "SONAR-netCDF4 2.0"}
