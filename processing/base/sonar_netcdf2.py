@@ -28,7 +28,7 @@ from processing.base.contract import (CHANNEL, ELEMENT_GROUP, ENVIRONMENT_GROUP,
 from processing.base.contract_v2 import (BEAM_GROUP_V2, BEAM_TYPE_ELEMENT_ARRAY, GRID_GROUP,
                                          GROUPS_V2, SINGLE_TARGET_GROUP, TIME_UNITS, VENDOR, NcGroup,
                                          group_v2)
-from processing.base.dataset import DatasetError
+from processing.base.dataset import DatasetError, beam_samples
 
 __all__ = ["write_sonar_netcdf2", "check_file", "is_sonar_netcdf2",
            "TARGET_COLUMNS", "TARGET_PARAMETERS", "SonarNetcdf2Error"]
@@ -221,14 +221,14 @@ def _first(ds, name, default=np.nan) -> float:
 
 
 def _per_ping(ds, name, n_p, default=np.nan) -> np.ndarray:
-    """A (channel, ping_time) or scalar variable as (n_p,)."""
+    """A (channel, ping_time), (ping_time,) or scalar variable as (n_p,) floats."""
     v = _get(ds, name)
     if v is None:
         return np.full(n_p, float(default))
     v = np.asarray(v, float)
-    if v.ndim == 2:
+    if v.ndim == 2:                                   # (channel, ping_time): the one channel
         return v[0]
-    return np.broadcast_to(v, (n_p,)).astype(float) if v.ndim <= 1 and v.size in (1, n_p) else np.full(n_p, float(v.ravel()[0]))
+    return np.broadcast_to(v.ravel()[0] if v.size == 1 else v, (n_p,)).astype(float)
 
 
 def _ns(times) -> np.ndarray:
@@ -321,7 +321,6 @@ def _file_values(tree, targets, parameters, grid, command) -> dict:
     if beam is None or sonar is None or env is None:
         raise SonarNetcdf2Error(f"{where}: a dataset needs /Sonar, /Sonar/Beam_group1 and /Environment "
                                 f"to be written as SONAR-netCDF4 2.0")
-    from processing.base.dataset import beam_samples
     x = np.asarray(beam_samples(beam, where=where))          # (ping, element, sample) complex64
     n_p, n_e, n_s = x.shape
     times = _ns(beam["ping_time"].values)
