@@ -232,10 +232,14 @@ def _per_ping(ds, name, n_p, default=np.nan) -> np.ndarray:
 
 
 def _ns(times) -> np.ndarray:
+    """Times as the convention's uint64 nanoseconds since 1970 (:data:`TIME_UNITS`)."""
     t = np.asarray(times)
-    if np.issubdtype(t.dtype, np.datetime64):
-        return t.astype("datetime64[ns]").astype(np.int64).astype(np.uint64)
-    return np.asarray(t, np.uint64)
+    ns = t.astype("datetime64[ns]").astype(np.int64) if np.issubdtype(t.dtype, np.datetime64) \
+        else np.asarray(t, np.int64)
+    if ns.size and ns.min() < 0:      # uint64 would wrap them round to the 26th century
+        raise SonarNetcdf2Error(f"ping times before 1970 ({np.datetime64(int(ns.min()), 'ns')}) cannot be "
+                                f"written as {TIME_UNITS}")
+    return ns.astype(np.uint64)
 
 
 def write_sonar_netcdf2(tree: xr.DataTree, path, *, targets: Mapping | None = None,
