@@ -208,7 +208,7 @@ SECTORS = ((+1, -1), (-1, -1), (-1, +1), (+1, +1))
 
 def write_ek80_style(path, *, lengths=(1200, 1400, 1300), target_range_m=19.5, along_deg=2.0,
                      athwart_deg=-3.0, sensitivity=(21.97, 21.97), drop=(), beam_type=2, c=1480.0,
-                     fs=50e3, f1=34e3, f2=45e3, duration=1.024e-3):
+                     fs=50e3, f1=34e3, f2=45e3, duration=1.024e-3, groups=("Beam_group1",)):
     """A SONAR-netCDF4 2.0 file as an EK80 writes it natively (its beam group after the
     convention): a 38 kHz split-aperture beam, FM 34–45 kHz, complex samples of four sub-beams as
     vlen vectors, pings of ``lengths`` samples (ragged), time in ns since 1601. One target at
@@ -251,42 +251,43 @@ def write_ek80_style(path, *, lengths=(1200, 1400, 1300), target_range_m=19.5, a
         sonar = nc.createGroup("Sonar")
         beam_t = sonar.createEnumType(np.uint8, "beam_t", {"single": 0, "split_aperture_angles": 1,
                                                             "split_aperture_4_subbeams": 2})
-        bg = sonar.createGroup("Beam_group1")
-        bg.beam_mode, bg.conversion_equation_type = "vertical", 4
-        sample_t, pulse_t = bg.createVLType(np.float32, "sample_t"), bg.createVLType(np.float32, "pulse_t")
-        for name, n in (("ping_time", None), ("beam", 1), ("subbeam", 4), ("tx_beam", 1)):
-            bg.createDimension(name, n)
-        bg.createVariable("beam", str, ("beam",))[0] = "WBT 1-ES38-7"
-        times = bg.createVariable("ping_time", "u8", ("ping_time",))
-        times.units = "nanoseconds since 1601-01-01 00:00:00Z"
-        times[:] = (np.datetime64("2024-03-13T18:40:00", "ns") - np.datetime64("1601-01-01", "ns")).astype(
-            np.int64) + np.arange(n_p, dtype=np.int64) * 10**9
-        bg.createVariable("beam_type", beam_t, ())[...] = np.uint8(beam_type)
-        for part, fn in (("r", np.real), ("i", np.imag)):
-            if f"backscatter_{part}" not in drop:
-                v = bg.createVariable(f"backscatter_{part}", sample_t, ("ping_time", "beam", "subbeam"))
-                for p in range(n_p):
-                    for s in range(4):
-                        v[p, 0, s] = fn(samples[p][s]).astype(np.float32)
-            if f"transmit_pulse_model_{part}" not in drop:
-                v = bg.createVariable(f"transmit_pulse_model_{part}", pulse_t, ("ping_time", "tx_beam"))
-                for p in range(n_p):
-                    v[p, 0] = fn(replica).astype(np.float32)
-        for name, dims, value, units in (
-                ("echoangle_major_sensitivity", ("beam",), [sensitivity[0]], "1"),
-                ("echoangle_minor_sensitivity", ("beam",), [sensitivity[1]], "1"),
-                ("beamwidth_receive_major", ("ping_time", "beam"), np.full((n_p, 1), 7.0), "arc_degree"),
-                ("beamwidth_receive_minor", ("ping_time", "beam"), np.full((n_p, 1), 7.0), "arc_degree"),
-                ("sample_interval", ("ping_time",), np.full(n_p, 1 / fs), "s"),
-                ("blanking_interval", ("ping_time", "beam"), np.zeros((n_p, 1)), "s"),
-                ("sample_time_offset", ("ping_time", "tx_beam"), np.zeros((n_p, 1)), "s"),
-                ("transmit_frequency_start", ("ping_time", "tx_beam"), np.full((n_p, 1), f1), "Hz"),
-                ("transmit_frequency_stop", ("ping_time", "tx_beam"), np.full((n_p, 1), f2), "Hz"),
-                ("transmit_duration_nominal", ("ping_time", "tx_beam"), np.full((n_p, 1), duration), "s")):
-            if name not in drop:
-                v = bg.createVariable(name, "f4", dims)
-                v[...] = value
-                v.units = units
+        for name in groups:
+            bg = sonar.createGroup(name)
+            bg.beam_mode, bg.conversion_equation_type = "vertical", 4
+            sample_t, pulse_t = bg.createVLType(np.float32, "sample_t"), bg.createVLType(np.float32, "pulse_t")
+            for dim, n in (("ping_time", None), ("beam", 1), ("subbeam", 4), ("tx_beam", 1)):
+                bg.createDimension(dim, n)
+            bg.createVariable("beam", str, ("beam",))[0] = "WBT 1-ES38-7"
+            times = bg.createVariable("ping_time", "u8", ("ping_time",))
+            times.units = "nanoseconds since 1601-01-01 00:00:00Z"
+            times[:] = (np.datetime64("2024-03-13T18:40:00", "ns") - np.datetime64("1601-01-01", "ns")).astype(
+                np.int64) + np.arange(n_p, dtype=np.int64) * 10**9
+            bg.createVariable("beam_type", beam_t, ())[...] = np.uint8(beam_type)
+            for part, fn in (("r", np.real), ("i", np.imag)):
+                if f"backscatter_{part}" not in drop:
+                    v = bg.createVariable(f"backscatter_{part}", sample_t, ("ping_time", "beam", "subbeam"))
+                    for p in range(n_p):
+                        for s in range(4):
+                            v[p, 0, s] = fn(samples[p][s]).astype(np.float32)
+                if f"transmit_pulse_model_{part}" not in drop:
+                    v = bg.createVariable(f"transmit_pulse_model_{part}", pulse_t, ("ping_time", "tx_beam"))
+                    for p in range(n_p):
+                        v[p, 0] = fn(replica).astype(np.float32)
+            for var, dims, value, units in (
+                    ("echoangle_major_sensitivity", ("beam",), [sensitivity[0]], "1"),
+                    ("echoangle_minor_sensitivity", ("beam",), [sensitivity[1]], "1"),
+                    ("beamwidth_receive_major", ("ping_time", "beam"), np.full((n_p, 1), 7.0), "arc_degree"),
+                    ("beamwidth_receive_minor", ("ping_time", "beam"), np.full((n_p, 1), 7.0), "arc_degree"),
+                    ("sample_interval", ("ping_time",), np.full(n_p, 1 / fs), "s"),
+                    ("blanking_interval", ("ping_time", "beam"), np.zeros((n_p, 1)), "s"),
+                    ("sample_time_offset", ("ping_time", "tx_beam"), np.zeros((n_p, 1)), "s"),
+                    ("transmit_frequency_start", ("ping_time", "tx_beam"), np.full((n_p, 1), f1), "Hz"),
+                    ("transmit_frequency_stop", ("ping_time", "tx_beam"), np.full((n_p, 1), f2), "Hz"),
+                    ("transmit_duration_nominal", ("ping_time", "tx_beam"), np.full((n_p, 1), duration), "s")):
+                if var not in drop:
+                    v = bg.createVariable(var, "f4", dims)
+                    v[...] = value
+                    v.units = units
     return samples, spacing
 
 
@@ -412,3 +413,17 @@ def test_a_2_0_file_beyond_the_memory_limit_is_refused_before_it_is_read(tmp_pat
     write_ek80_style(tmp_path / "ek.nc")
     with pytest.raises(ResourceError):
         open_record(tmp_path / "ek.nc", max_memory_gb=1e-6)
+
+
+def test_a_file_of_several_beam_groups_says_which_it_read(tmp_path):
+    """An EK80 writes one beam group per channel: the one read is named, the others listed, and
+    each can be chosen."""
+    from processing.base.dataset import DatasetWarning
+    write_ek80_style(tmp_path / "ek.nc", groups=("Beam_group1", "Beam_group2"))
+    with pytest.warns(DatasetWarning, match=r"read /Sonar/Beam_group1, one of 2 beam groups; the others \(Beam_group2\)"):
+        open_record(tmp_path / "ek.nc")
+    with pytest.warns(DatasetWarning, match="Beam_group1"):
+        tree = open_record(tmp_path / "ek.nc", beam_group="Beam_group2")
+    assert tree[ELEMENT_GROUP].sizes["range_sample"] == 1400
+    with pytest.raises(DatasetError, match="no /Sonar/Beam_group3; its beam groups are Beam_group1, Beam_group2"):
+        open_record(tmp_path / "ek.nc", beam_group="Beam_group3")

@@ -16,6 +16,9 @@ def add_parser(sub):
     c.add_argument("--format", choices=DATASET_FORMATS,
                    help="netcdf or zarr: SONAR-netCDF4 1.0 (default, from the suffix); sonar-netcdf4-2: "
                         "SONAR-netCDF4 2.0 (.nc; docs/dataset.md)")
+    c.add_argument("--beam-group", default="Beam_group1",
+                   help="the beam group of a SONAR-netCDF4 2.0 input to read (default Beam_group1; an "
+                        "EK80 writes one per channel)")
     add_output_options(c)
     c.set_defaults(func=command)
 
@@ -44,7 +47,7 @@ def command(args) -> int:
     if suffix == ".mat":
         tree = read_mat(src, max_memory_gb=args.max_memory)
     elif is_sonar_netcdf2(src):
-        tree = open_record(src, max_memory_gb=args.max_memory)
+        tree = open_record(src, max_memory_gb=args.max_memory, beam_group=args.beam_group)
     else:
         tree = open_tree(src, max_memory_gb=args.max_memory, work_factor=2.0)
         # a 1.0 dataset is written as 2.0 as it is; anything else must be the previous layout

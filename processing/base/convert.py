@@ -621,11 +621,11 @@ def read_mat(path, *, max_memory_gb: float | None = None) -> xr.DataTree:
         title=f"converted from {path.name}", source=where)
 
 
-def open_record(path, *, max_memory_gb: float | None = None) -> xr.DataTree:
+def open_record(path, *, max_memory_gb: float | None = None, beam_group: str = "Beam_group1") -> xr.DataTree:
     """A recording or dataset of any layout abacus reads, as a dataset of the contract: a
     MATLAB ``.mat`` recording, a SONAR-netCDF4 2.0 file
     (:func:`processing.base.sonar_netcdf2_read.read_sonar_netcdf2`), the previous abacus
-    layout, or a 1.0 dataset (as it is).
+    layout, or a 1.0 dataset (as it is). ``beam_group``: the beam group of a 2.0 file to read.
 
     Raises
     ------
@@ -639,7 +639,7 @@ def open_record(path, *, max_memory_gb: float | None = None) -> xr.DataTree:
         return read_mat(path, max_memory_gb=max_memory_gb)
     if is_sonar_netcdf2(path):
         from processing.base.sonar_netcdf2_read import read_sonar_netcdf2
-        tree = read_sonar_netcdf2(path, max_memory_gb=max_memory_gb)
+        tree = read_sonar_netcdf2(path, max_memory_gb=max_memory_gb, beam_group=beam_group)
         check_record(tree, source=str(path))
         return tree
     tree = open_tree(path, max_memory_gb=max_memory_gb, work_factor=2.0)

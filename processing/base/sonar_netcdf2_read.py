@@ -28,7 +28,7 @@ import xarray as xr
 
 from processing.base.contract import (BEAM_GROUP_NAME, CHANNEL, ELEMENT_GROUP, ENVIRONMENT_GROUP,
                                       PLATFORM_GROUP, PROVENANCE_GROUP, ROOT_GROUP, SONAR_GROUP, TRUTH_GROUP, group_spec)
-from processing.base.dataset import DatasetError
+from processing.base.dataset import DatasetError, DatasetWarning
 from processing.base.groups import build_group, complex_pair, per_beam, per_ping, tree_of
 
 __all__ = ["read_sonar_netcdf2", "SECTOR_LAYOUT"]
@@ -137,6 +137,16 @@ def read_sonar_netcdf2(path, *, beam_group: str = "Beam_group1",
     with nc:
         gpath = f"Sonar/{beam_group}"
         bg, env, sonar = _group(nc, gpath), _group(nc, "Environment"), _group(nc, "Sonar")
+        others = sorted(g for g in (sonar.groups if sonar is not None else {})
+                        if g.startswith("Beam_group") and g != beam_group)
+        if bg is None and others:
+            raise DatasetError(f"{where}: no /{gpath}; its beam groups are {', '.join(others)} "
+                               f"(choose one: beam_group=..., abacus convert --beam-group NAME)")
+        if others:       # an EK80 writes one beam group per channel: say what is left out
+            import warnings
+            warnings.warn(f"{where}: read /{gpath}, one of {len(others) + 1} beam groups; the others "
+                          f"({', '.join(others)}) are read with beam_group=... (abacus convert "
+                          f"--beam-group NAME)", DatasetWarning, stacklevel=2)
         abacus = _var(bg, "subbeam_x") is not None
         need = [("Environment", env, "sound_speed_indicative")]
         need += [(gpath, bg, n) for n in ("backscatter_r", "backscatter_i", "ping_time", "sample_interval",
