@@ -24,7 +24,7 @@ import xarray as xr
 
 from processing.base.atomic import staged
 from processing.base.contract import (CHANNEL, ELEMENT_GROUP, ENVIRONMENT_GROUP, PLATFORM_GROUP,
-                                      PROVENANCE_GROUP, ROOT_GROUP, SONAR_GROUP, TRUTH_GROUP)
+                                      PROVENANCE_GROUP, SONAR_GROUP, TRUTH_GROUP)
 from processing.base.contract_v2 import (BEAM_GROUP_V2, BEAM_TYPE_ELEMENT_ARRAY, GRID_GROUP,
                                          GROUPS_V2, SINGLE_TARGET_GROUP, TIME_UNITS, VENDOR, NcGroup,
                                          group_v2)
@@ -529,13 +529,16 @@ def _grid_values(grid: xr.Dataset, times, rot, origin, beam_vals, f0, minor_widt
         "beam": names, "frequency": np.full(n_b, f0), "beam_reference": names,
         "backscatter_type": np.zeros(n_b, np.int8),
         "ping_axis_interval_type": np.int8(3), "ping_axis_interval_value": float(grid.attrs.get("ping_bin", np.nan)),
-        "range_axis_interval_type": np.int8(0), "range_axis_interval_value": float(grid.attrs.get("range_bin_m", np.nan)),
+        "range_axis_interval_type": np.int8(0),
+        "range_axis_interval_value": float(grid.attrs.get("range_bin_m", np.nan)),
         "cell_ping_time": np.round(cell_time).astype(np.uint64)[:, None],
         "integrated_backscatter": sv,            # (ping bin, range bin, formed beam = frequency entry)
         "sv_linear": lin,
         "beamwidth_receive_major": np.full((n_pb, n_b), np.nan),
-        "beamwidth_receive_minor": np.full((n_pb, n_b), np.nan if minor_width is None else float(np.nanmean(minor_width))),
-        **{f"rx_beam_rotation_{k}": np.broadcast_to(eul[:, i], (n_pb, n_b)) for i, k in enumerate(("psi", "theta", "phi"))},
+        "beamwidth_receive_minor": np.full((n_pb, n_b), np.nan if minor_width is None
+                                           else float(np.nanmean(minor_width))),
+        **{f"rx_beam_rotation_{k}": np.broadcast_to(eul[:, i], (n_pb, n_b))
+           for i, k in enumerate(("psi", "theta", "phi"))},
         **{f"tx_beam_rotation_{k}": one * tx[i] for i, k in enumerate(("psi", "theta", "phi"))},
         "beam_stabilisation": np.zeros(n_pb, np.int8), "beam_type": np.zeros(n_b, np.int8),
         "equivalent_beam_angle": np.full((n_pb, n_b), np.nan),

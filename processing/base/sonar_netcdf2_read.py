@@ -27,7 +27,8 @@ import numpy as np
 import xarray as xr
 
 from processing.base.contract import (BEAM_GROUP_NAME, CHANNEL, ELEMENT_GROUP, ENVIRONMENT_GROUP,
-                                      PLATFORM_GROUP, PROVENANCE_GROUP, ROOT_GROUP, SONAR_GROUP, TRUTH_GROUP, group_spec)
+                                      PLATFORM_GROUP, PROVENANCE_GROUP, ROOT_GROUP, SONAR_GROUP, TRUTH_GROUP,
+                                      group_spec)
 from processing.base.dataset import DatasetError, DatasetWarning
 from processing.base.groups import build_group, complex_pair, per_beam, per_ping, tree_of
 
@@ -208,11 +209,13 @@ def _tree(nc, path, gpath, bg, env, sonar, btype, abacus) -> xr.DataTree:
     elif bw == 0 and _var(bg, "transmit_duration_nominal") is not None:      # CW: the pulse's own band
         bw = 1.0 / _one(bg["transmit_duration_nominal"], f"{where}: /{gpath}/transmit_duration_nominal")
     rep_r, rep_i = _array(bg["transmit_pulse_model_r"]), _array(bg["transmit_pulse_model_i"])
-    replica = (np.asarray(rep_r.ravel()[0], float) + 1j * np.asarray(rep_i.ravel()[0], float)) \
-        if rep_r.dtype == object else (rep_r.reshape(-1, rep_r.shape[-1])[0] + 1j * rep_i.reshape(-1, rep_i.shape[-1])[0])
+    if rep_r.dtype == object:                   # the convention's pulse_t: one vector per ping
+        replica = np.asarray(rep_r.ravel()[0], float) + 1j * np.asarray(rep_i.ravel()[0], float)
+    else:                                       # a fixed-length writer: the last axis is samples
+        replica = rep_r.reshape(-1, rep_r.shape[-1])[0] + 1j * rep_i.reshape(-1, rep_i.shape[-1])[0]
     c = _one(env["sound_speed_indicative"], f"{where}: /Environment/sound_speed_indicative")
-    blank = _one(bg["blanking_interval"], "") if _var(bg, "blanking_interval") is not None else 0.0
-    offset = _one(bg["sample_time_offset"], "") if _var(bg, "sample_time_offset") is not None else 0.0
+    blank, offset = (_one(bg[n], f"{where}: /{gpath}/{n}") if _var(bg, n) is not None else 0.0
+                     for n in ("blanking_interval", "sample_time_offset"))
 
     if abacus:
         pos = np.stack([_array(bg[f"subbeam_{a}"]).astype(float) for a in "xyz"], -1)
@@ -262,7 +265,8 @@ def _tree(nc, path, gpath, bg, env, sonar, btype, abacus) -> xr.DataTree:
     if _var(bg, "adc_clipped_samples") is not None:
         beams["adc_clipped_samples"] = _array(bg["adc_clipped_samples"]).astype(int)
     if abacus:
-        eba = _array(bg["equivalent_beam_angle"]).astype(float) if _var(bg, "equivalent_beam_angle") is not None else None
+        eba = (_array(bg["equivalent_beam_angle"]).astype(float)
+               if _var(bg, "equivalent_beam_angle") is not None else None)
         if eba is not None and np.all(np.isfinite(eba)):
             beams["equivalent_beam_angle"] = per_beam(np.full(n_sb, 10 * np.log10(np.mean(eba))))
         for a in ("major", "minor"):
@@ -282,14 +286,15 @@ def _tree(nc, path, gpath, bg, env, sonar, btype, abacus) -> xr.DataTree:
              "beam_group_name": [BEAM_GROUP_NAME], "beam_group_descr": [f"{gpath} of {path.name}"],
              "channel_all": [CHANNEL], "beam_group": [BEAM_GROUP_NAME]}
     if _var(bg, "transmit_duration_nominal") is not None:
-        svals["transmit_duration_nominal"] = _one(bg["transmit_duration_nominal"], "")
+        svals["transmit_duration_nominal"] = _one(bg["transmit_duration_nominal"],
+                                                  f"{where}: /{gpath}/transmit_duration_nominal")
     for a in ("major", "minor"):
         # a monostatic transducer (a foreign file) transmits with its receive beam
         v = _var(bg, f"beamwidth_transmit_{a}")
         if (v is None or not np.any(np.isfinite(_array(v)))) and not abacus:
             v = _var(bg, f"beamwidth_receive_{a}")
         if v is not None and np.any(np.isfinite(_array(v))):
-            svals[f"beamwidth_transmit_{a}"] = _one(v, "")
+            svals[f"beamwidth_transmit_{a}"] = _one(v, f"{where}: /{gpath}/{v.name}")
     for name in ("calibration_gain", "two_way_elevation_width", "calibration_azimuth", "tx_element_width",
                  "tx_element_height", "tx_element_rotation"):
         if _var(sonar, name) is not None:
