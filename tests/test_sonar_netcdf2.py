@@ -427,3 +427,19 @@ def test_a_file_of_several_beam_groups_says_which_it_read(tmp_path):
     assert tree[ELEMENT_GROUP].sizes["range_sample"] == 1400
     with pytest.raises(DatasetError, match="no /Sonar/Beam_group3; its beam groups are Beam_group1, Beam_group2"):
         open_record(tmp_path / "ek.nc", beam_group="Beam_group3")
+
+
+def test_abacus_run_writes_2_0_beside_the_1_0_run(tmp_path):
+    """``abacus run --format sonar-netcdf4-2`` (abacus.run(..., sonar_netcdf2=True)): run.nc
+    stays 1.0, and run.sonar-netcdf4-2.nc holds the run with its single targets and gridded Sv."""
+    import abacus
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = abacus.run("two_targets", tmp_path / "r", pings=1, plots=False, sonar_netcdf2=True)
+    v2 = result.folder / "run.sonar-netcdf4-2.nc"
+    assert "run.sonar-netcdf4-2.nc" in result.made
+    assert open_tree(result.folder / "run.nc").attrs["sonar_convention_version"] == "1.0"
+    assert ices_check(v2, applicable=APPLICABLE, exceptions=DEPARTURES) == []
+    with netCDF4.Dataset(v2) as nc:
+        assert set(nc["Sonar"].groups) == {"Beam_group1", "Grid_group1"}
+        assert nc["Sonar/Beam_group1/SingleTarget/single_target_count"][:].ravel().tolist() == [2]
