@@ -630,13 +630,15 @@ def read_mat(path, *, max_memory_gb: float | None = None) -> xr.DataTree:
 
 #: what :func:`open_record` reads (for messages)
 RECORD_KINDS = ("abacus SONAR-netCDF4 1.0 (.nc/.zarr)", "the previous abacus layout",
-                "a MATLAB v5/v7 .mat recording", "a Simrad EK60/EK80 file converted by echopype")
+                "a MATLAB v5/v7 .mat recording", "a SONAR-netCDF4 2.0 file", "a Simrad EK60/EK80 file converted by echopype")
 
 
-def open_record(path, *, max_memory_gb: float | None = None) -> xr.DataTree:
+def open_record(path, *, max_memory_gb: float | None = None, beam_group: str = "Beam_group1") -> xr.DataTree:
     """Any recording abacus reads, as a checked tree.
 
     * ``.mat``: :func:`read_mat`;
+    * a SONAR-netCDF4 2.0 file (:func:`processing.base.sonar_netcdf2_read.read_sonar_netcdf2`),
+      its beam group ``beam_group`` (an EK80 writes one per channel);
     * the previous abacus layout: :func:`from_legacy`;
     * a Simrad EK60/EK80 file echopype converted (``echopype.open_raw(...).to_netcdf``): checked
       by :func:`processing.base.echosounder.check_echosounder` (every missing variable named in
@@ -649,6 +651,8 @@ def open_record(path, *, max_memory_gb: float | None = None) -> xr.DataTree:
     ----------
     path : str or Path
     max_memory_gb : float, optional
+    beam_group : str
+        The beam group of a 2.0 file to read.
 
     Returns
     -------
@@ -661,10 +665,16 @@ def open_record(path, *, max_memory_gb: float | None = None) -> xr.DataTree:
     """
     from processing.base.dataset import has_group, open_tree, read_record
     from processing.base.echosounder import annotate_missing, check_echosounder, echosounder_model
+    from processing.base.sonar_netcdf2 import is_sonar_netcdf2
     path = Path(path)
     where = str(path)
     if path.suffix.lower() == ".mat":
         return read_mat(path, max_memory_gb=max_memory_gb)
+    if is_sonar_netcdf2(path):
+        from processing.base.sonar_netcdf2_read import read_sonar_netcdf2
+        tree = read_sonar_netcdf2(path, max_memory_gb=max_memory_gb, beam_group=beam_group)
+        check_record(tree, source=where)
+        return tree
     tree = open_tree(path, max_memory_gb=max_memory_gb, work_factor=2.0)
     if has_group(tree, LEGACY_ELEMENT_GROUP) and not has_group(tree, ELEMENT_GROUP):
         return from_legacy(tree, source=where)

@@ -39,7 +39,7 @@ from processing.base.contract import (CONVENTIONS, ELEMENT_GROUP, ENVIRONMENT_GR
 __all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "ping_indices", "TRUTH_GROUP",
            "write_tree", "write_dataset", "check_finite", "NAN_MEANS", "open_tree", "tree_pings", "source_of", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
            "read_record", "beam_samples", "LEGACY_ELEMENT_GROUP", "as_tree", "group_of", "has_group",
-           "missing_variables", "echosounder_model", "SIMRAD_MODELS"]
+           "missing_variables", "echosounder_model", "SIMRAD_MODELS", "sonar_convention_version"]
 
 FORMATS = ("netcdf", "zarr")
 
@@ -233,6 +233,9 @@ def open_tree(path: str | Path, *, max_memory_gb: float | None = None,
         raise DatasetError(f"{path}: not a regular file (a device or a pipe); expected NetCDF4 or Zarr")
     if path.is_dir():
         require("zarr", f"reading Zarr ({path.name})")
+    elif sonar_convention_version(path).startswith("2"):
+        raise DatasetError(f"{path}: a SONAR-netCDF4 2.0 file; read it with processing.open_record(path), "
+                           f"or convert it to the 1.0 dataset processing reads: abacus convert {path.name} OUT.nc")
     try:
         if path.is_dir():
             tree = xr.open_datatree(path, engine="zarr", consolidated=False)
@@ -257,6 +260,17 @@ def open_tree(path: str | Path, *, max_memory_gb: float | None = None,
                            f"{_first_line(exc)})") from None
     finally:
         tree.close()
+
+
+def sonar_convention_version(path: Path) -> str:
+    """The root attribute ``sonar_convention_version`` of a netCDF4 file ("" when it has none
+    or is not netCDF4): how a SONAR-netCDF4 2.0 file is told from a 1.0 dataset."""
+    import netCDF4
+    try:
+        with netCDF4.Dataset(path) as nc:
+            return str(getattr(nc, "sonar_convention_version", "")).strip()
+    except Exception:        # not netCDF4: xarray's reader says what it is
+        return ""
 
 
 def _first_line(exc) -> str:
