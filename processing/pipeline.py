@@ -377,7 +377,8 @@ class RecordChain:
             ts_u, ts_c, pat = target_strength_db(det["amplitude"], det["range_m"], sonar_xyz,
                                                  gain_counts_m=cal.gain_counts_m,
                                                  absorption_db_per_m=cal.absorption_db_per_m,
-                                                 pattern=beam_pattern_of(self.tree))
+                                                 pattern=beam_pattern_of(self.tree, st.detect.image_group,
+                                                                         st.image.spatial_window))
         except DatasetError:
             ts_u = ts_c = pat = np.full(n, np.nan)
         single = single_targets(det["ping"], det["range_m"], det["azimuth_rad"], det["amplitude"],
