@@ -13,6 +13,7 @@ use, so ``import processing`` is cheap)::
     track(tree, settings=None) -> DataTree     # fish tracks across pings, scored against the truth
     sv(tree, settings=None, ...) -> DataTree   # calibrated Sv: MVBS grid and NASC (/Processing/Sv)
     tracks_of(tree) -> xarray.Dataset          # one row per track, and per track point
+    single_targets(tree, settings=None) -> xarray.Dataset  # single-target detection by the echosounder criteria
     open_tree(path), write_tree(tree, path)    # the dataset I/O (atomic writes)
     ProcessingSettings, load_settings(path)
 """
@@ -35,7 +36,8 @@ _API = {
     "ProcessingSettings": "processing.settings", "ImageSettings": "processing.settings",
     "load_settings": "processing.settings",
     "track": "processing.tracking.tracks", "tracks_of": "processing.tracking.tracks",
-    "sv": "processing.backscatter.sv", "RecordChain": "processing.pipeline", "as_tree": "processing.base.dataset",
+    "sv": "processing.backscatter.sv", "single_targets": "processing.backscatter.target_table",
+    "write_targets_csv": "processing.backscatter.target_table", "RecordChain": "processing.pipeline", "as_tree": "processing.base.dataset",
 }
 
 __getattr__, __dir__, __all__ = public_api("processing", _API, globals(), extra=())
