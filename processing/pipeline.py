@@ -421,8 +421,9 @@ class RecordChain:
             ``ts_uncomp_db``, ``ts_comp_db`` (dB re 1 m²), ``beam_pattern_db`` (two-way at the
             located position, near field included when ``single_target.near_field``, dB),
             ``beam_compensation_db`` (one-way, dB), ``echo_length_m``, ``echo_length``
-            (normalised), ``phase_deviation_deg`` (electrical), ``angle_deviation_deg``
-            (elevation, mechanical), ``echo_spacing`` (nominal pulse lengths, inf alone),
+            (normalised), ``phase_deviation_deg`` (ψ_AB, electrical), ``angle_deviation_deg``
+            (elevation, mechanical), ``azimuth_phase_deviation_deg`` (split-aperture phase,
+            electrical), ``azimuth_deviation_deg`` (mechanical), ``echo_spacing`` (nominal pulse lengths, inf alone),
             ``rejected_by`` (str: the first rule failed, "" for a single target) and
             ``single_target`` (bool).
         """
@@ -440,27 +441,35 @@ class RecordChain:
         length_m = np.full(n, np.nan)
         phase_dev = np.full(n, np.nan)
         angle_dev = np.full(n, np.nan)
+        az_phase_dev = np.full(n, np.nan)
+        az_dev = np.full(n, np.nan)
         ping = np.asarray(det["ping"], int)
         pings = np.unique(ping)
         for s in range(0, pings.size, chunk):
             part = pings[s:s + chunk]
             im = (detected.images.pings(part) if detected.images is not None
                   else self.images(pings=part))
-            self._measure_echoes(im, part, ping, det, length_m, phase_dev, angle_dev)
+            self._measure_echoes(im, part, ping, det, length_m, phase_dev, angle_dev, az_phase_dev, az_dev)
         nominal = self.nominal_echo_length_m
         comp = np.where(np.isfinite(pat), -0.5 * pat, np.nan)
         spacing = echo_spacing(ping, det["range_m"], det["azimuth_rad"], ~sidelobe,
                                azimuth_resolution_rad=detected.azimuth_resolution_rad) / nominal
         echo_length = length_m / nominal
+        # the larger of the two planes' phase deviations, as a split-beam echosounder applies
+        # its one limit to both (NaN, the rule skipped, where neither plane has a phase)
+        both = np.stack([phase_dev, az_phase_dev])
+        worst = np.where(np.all(np.isnan(both), axis=0), np.nan,
+                         np.nanmax(np.where(np.isnan(both), -np.inf, both), axis=0))
         rule = verdicts(sidelobe=sidelobe, ts_comp_db=ts_c, echo_length=echo_length,
-                        phase_deviation_deg=phase_dev, compensation_db=comp, spacing=spacing,
+                        phase_deviation_deg=worst, compensation_db=comp, spacing=spacing,
                         settings=sts)
         return {"ts_uncomp_db": ts_u, "ts_comp_db": ts_c, "beam_pattern_db": pat,
                 "beam_compensation_db": comp, "echo_length_m": length_m, "echo_length": echo_length,
                 "phase_deviation_deg": phase_dev, "angle_deviation_deg": angle_dev,
+                "azimuth_phase_deviation_deg": az_phase_dev, "azimuth_deviation_deg": az_dev,
                 "echo_spacing": spacing, "rejected_by": rule, "single_target": rule == ""}
 
-    def _measure_echoes(self, im, part, ping, det, length_m, phase_dev, angle_dev):
+    def _measure_echoes(self, im, part, ping, det, length_m, phase_dev, angle_dev, az_phase_dev, az_dev):
         """Echo length and phase deviation of the detections of pings ``part`` (rows of the
         file) from their images ``im`` (one per ping of ``part``), written in place."""
         from processing.backscatter.echo_criteria import echo_shape
@@ -473,6 +482,13 @@ class RecordChain:
         r_axis = np.asarray(im.range_m, float)
         step = float((r_axis[-1] - r_axis[0]) / (r_axis.size - 1)) if r_axis.size > 1 else 0.0
         u_beam = np.sin(np.asarray(im.beam_angle_rad, float))
+        nb = u_beam.size
+        # the split aperture: the two halves of the imaged subarray, their centres half the
+        # aperture apart (x extent of the image's elements)
+        idx = self.record.image_groups[im.groups[gi]]
+        xs = np.sort(self.record.element_position_m[idx, 0])
+        d_split = float(xs[-1] - xs[0]) * xs.size / (2.0 * max(xs.size - 1, 1))
+        k = 2 * np.pi / im.wavelength_m
         for j, p in enumerate(part):
             for i in np.flatnonzero(ping == p):
                 row = int(np.clip(np.rint((det["range_m"][i] - r_axis[0]) / step) if step else 0,
@@ -480,8 +496,14 @@ class RecordChain:
                 beam = int(np.argmin(np.abs(u_beam - np.sin(det["azimuth_rad"][i]))))
                 env = np.abs(im.image[j, gi, :, beam])
                 cross = (im.image[j, ia, :, beam] * np.conj(im.image[j, ib, :, beam]) if inter else None)
-                length_m[i], phase_dev[i] = echo_shape(env, row, range_step_m=step,
-                                                       level_db=sts.echo_length_level_db, cross=cross)
+                sides = (np.abs(im.image[j, gi, :, [beam - 1, beam + 1]]).T if 0 < beam < nb - 1 else None)
+                length_m[i], phase_dev[i], off_sd = echo_shape(
+                    env, row, range_step_m=step, level_db=sts.echo_length_level_db, cross=cross,
+                    neighbours=sides)
+                if np.isfinite(off_sd):
+                    du = 0.5 * (u_beam[beam + 1] - u_beam[beam - 1])
+                    az_phase_dev[i] = np.degrees(k * d_split * du * off_sd)
+                    az_dev[i] = np.degrees(du * off_sd / max(np.cos(im.beam_angle_rad[beam]), 1e-6))
                 if inter and np.isfinite(phase_dev[i]):
                     # dφ/dψ = λ / (2π R cos(φ + γ)), R the baseline's share that elevation changes
                     th = float(im.beam_angle_rad[beam])

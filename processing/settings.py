@@ -204,15 +204,19 @@ class SingleTargetSettings(ConfigModel):
     gain_compensation_db: NonNegativeReal = Field(6.0, le=60)
     """param_gain_compensation: maximum one-way beam compensation (dB): half the two-way
     compensation at the located angles."""
-    minimum_echo_duration: PositiveReal = Field(0.8, le=100)
-    """param_minimum_echo_duration: minimum −6 dB echo length relative to the nominal pulse's."""
-    maximum_echo_duration: PositiveReal = Field(1.5, le=100)
+    minimum_echo_duration: PositiveReal = Field(0.9, le=100)
+    """param_minimum_echo_duration: minimum −6 dB echo length relative to the nominal pulse's.
+    One echo of the compressed pulse has the nominal length within ±3 % at SNR ≥ 35 dB
+    (docs/single_targets.md); EK60's CW defaults (0.8–2.5) allow for a CW envelope that a
+    matched filter with the known replica does not have."""
+    maximum_echo_duration: PositiveReal = Field(1.1, le=100)
     """param_maximum_echo_duration: maximum −6 dB echo length relative to the nominal pulse's."""
-    maximum_phase_deviation: NonNegativeReal | None = Field(10.0, alias="maximum_phase_deviation_deg",
+    maximum_phase_deviation: NonNegativeReal | None = Field(3.0, alias="maximum_phase_deviation_deg",
                                                            le=180)
-    """param_maximum_phase_deviation: maximum standard deviation (deg, electrical) of the
-    interferometric phase ψ_AB over the samples within the echo's −6 dB points; null: not
-    applied (normal and combined mode have no phase and skip it)."""
+    """param_maximum_phase_deviation: maximum standard deviation (deg, electrical) of the phase
+    over the samples within the echo's −6 dB points, the larger of the two planes' (elevation:
+    ψ_AB; azimuth: the split-aperture phase of the beam-domain peak); null: not applied. Noise
+    alone gives ≈ 0.5° at SNR 50 dB and up to ≈ 3° at 38 dB: raise it for weaker echoes."""
     minimum_echo_spacing: NonNegativeReal = Field(1.0, le=100)
     """param_minimum_echo_spacing: another echo in the same beam (within one azimuth
     resolution) closer in range than this many nominal pulse lengths rejects both."""

@@ -13,9 +13,13 @@ images give the same measures per detection, in the beam the detection lies in:
   :func:`nominal_echo_length_m`). One echo gives 1; two overlapping echoes a longer or,
   where they cancel, a shorter or split envelope.
 * **phase deviation**: the standard deviation (deg, electrical) of the interferometric phase
-  ψ_AB = arg(I_A I_B*) over the samples within those points, taken relative to the phase at
-  the peak (no wrapping). One target's phase is the same along its echo; two targets at
-  different elevations pull it from one's phase to the other's along the overlap.
+  over the samples within those points, in both planes as a split-beam echosounder measures
+  it (alongship and athwartship). Elevation: ψ_AB = arg(I_A I_B*), taken relative to the
+  phase at the peak (no wrapping). Azimuth: the beam-domain peak of each sample (a parabola
+  through the echo's beam and its two neighbours) expressed as the phase between the two
+  halves of the receive subarray, ψ_split = k d_split Δ(sin θ), d_split half the aperture,
+  the phase a split aperture would measure. One target's phases are the same along its echo;
+  two targets at different angles pull them from one's to the other's along the overlap.
 * **beam compensation**: one-way, half the two-way compensation at the located angles
   (processing/backscatter/target_strength.py).
 * **echo spacing**: the range to the nearest other echo in the same beam (within one azimuth
@@ -86,7 +90,7 @@ def _crossings(env, i, fraction):
 
 
 def echo_shape(envelope, row: int, *, range_step_m: float, level_db: float = 6.0, cross=None,
-               search_rows: int = 2):
+               neighbours=None, search_rows: int = 2):
     """Echo length and phase deviation of one echo in one beam.
 
     Parameters
@@ -101,6 +105,8 @@ def echo_shape(envelope, row: int, *, range_step_m: float, level_db: float = 6.0
         The echo's ends: where the envelope falls this far below the peak.
     cross : array_like of complex, shape (n_range,), optional
         I_A I_B* along the same beam (interferometric mode), for the phase deviation.
+    neighbours : array_like, shape (n_range, 2), optional
+        |I_A| in the beams either side (lower, higher beam angle), for the azimuth deviation.
 
     Returns
     -------
@@ -109,27 +115,36 @@ def echo_shape(envelope, row: int, *, range_step_m: float, level_db: float = 6.0
     phase_deviation_deg : float
         Standard deviation of ψ_AB over the samples within the ends (deg); NaN without ``cross``
         or when the echo runs off the image.
+    beam_offset_sd : float
+        Standard deviation of the beam-domain peak over the same samples (in beam steps); NaN
+        without ``neighbours``.
     """
     env = np.asarray(envelope, float)
     n = env.size
     a, b = max(0, row - search_rows), min(n, row + search_rows + 1)
     peak = a + int(np.argmax(env[a:b]))
     if not env[peak] > 0:
-        return np.nan, np.nan
+        return np.nan, np.nan, np.nan
     lo, hi = _crossings(env, peak, 10.0 ** (-level_db / 20.0))
     if not (np.isfinite(lo) and np.isfinite(hi)):
-        return np.nan, np.nan
+        return np.nan, np.nan, np.nan
     length = float((hi - lo) * range_step_m)
-    if cross is None:
-        return length, np.nan
-    c = np.asarray(cross, complex)
     rows = np.arange(int(np.ceil(lo)), int(np.floor(hi)) + 1)
-    ref = c[peak]
-    if rows.size < 2 or ref == 0:
-        return length, 0.0
-    # relative to the phase at the peak: the deviations of one echo are small, no wrapping
-    dpsi = np.angle(c[rows] * np.conj(ref))
-    return length, float(np.degrees(np.std(dpsi)))
+    phase_sd = offset_sd = np.nan
+    if cross is not None:
+        c = np.asarray(cross, complex)
+        ref = c[peak]
+        if rows.size < 2 or ref == 0:
+            phase_sd = 0.0
+        else:
+            # relative to the phase at the peak: the deviations of one echo are small, no wrapping
+            phase_sd = float(np.degrees(np.std(np.angle(c[rows] * np.conj(ref)))))
+    if neighbours is not None:
+        from processing.detection.peaks import refine
+        nb = np.asarray(neighbours, float)
+        off, _ = refine(nb[rows, 0], env[rows], nb[rows, 1])
+        offset_sd = float(np.std(off)) if rows.size >= 2 else 0.0
+    return length, phase_sd, offset_sd
 
 
 def echo_spacing(ping, range_m, azimuth_rad, candidate, *, azimuth_resolution_rad: float):
