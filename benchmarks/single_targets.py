@@ -68,6 +68,8 @@ def ts_bias(quick=False, seed=28):
                 for _ in range(n_pos):
                     ts = float(rng.uniform(-50, -30))
                     az, el = float(rng.uniform(-4, 4)), float(rng.uniform(-0.3, 0.3))
+                    if mode == "normal":
+                        el = 0.0        # one subarray gives no elevation: only azimuth is compensated
                     sc = _scene([{"range_m": r, "azimuth_deg": az, "elevation_deg": el,
                                   "backscatter": {"model": "fixed", "ts_db": ts}}],
                                 bandwidth_hz=bw, image_range=(max(r - 3.0, 10.0), r + 3.0), mode=mode)
