@@ -235,22 +235,24 @@ def main(argv=None):
     a = ap.parse_args(argv)
     warnings.simplefilter("ignore")
     t0 = time.time()
-    text = Path(a.out).read_text()
+    tables = {}
     if a.only in (None, "ts_bias"):
-        rows = ts_bias(quick=a.quick)
-        text = _replace(text, "ts_bias", ts_bias_table(rows))
-        print(ts_bias_table(rows))
+        tables["ts_bias"] = ts_bias_table(ts_bias(quick=a.quick))
+        print(tables["ts_bias"])
     if a.only in (None, "rates"):
         n = 3 if a.quick else 12
         results = []
         for level in (210.0, 180.0, 165.0):
             results.append(("isolated", detection_rates(pairs=False, scenes=n, source_level_db=level)))
             results.append(("pairs", detection_rates(pairs=True, scenes=n, source_level_db=level)))
-        text = _replace(text, "rates", rates_table(results))
-        text = _replace(text, "pairs", pairs_by_separation_table(results))
-        print(rates_table(results))
-        print(pairs_by_separation_table(results))
+        tables["rates"] = rates_table(results)
+        tables["pairs"] = pairs_by_separation_table(results)
+        print(tables["rates"])
+        print(tables["pairs"])
     load = os.getloadavg()[0]
+    text = Path(a.out).read_text()          # read at the end: the page may be edited meanwhile
+    for key, body in tables.items():
+        text = _replace(text, key, body)
     text = _replace(text, "run", f"`python benchmarks/single_targets.py{' --quick' if a.quick else ''}`: "
                     f"{time.time() - t0:.0f} s, load average {load:.1f} (a shared 2-core machine).")
     Path(a.out).write_text(text)
