@@ -15,6 +15,8 @@ use, so ``import processing`` is cheap)::
     tracks_of(tree) -> xarray.Dataset          # one row per track, and per track point
     single_targets(tree, settings=None) -> xarray.Dataset  # single-target detection by the echosounder criteria
     open_tree(path), write_tree(tree, path)    # the dataset I/O (atomic writes)
+    open_record(path) -> DataTree              # any recording read and checked (.mat, echopype EK60/EK80, ...)
+    echopype_view(tree) -> DataTree            # the calibrated image in the EK60 convention echopype calibrates
     ProcessingSettings, load_settings(path)
 """
 from __future__ import annotations
@@ -37,7 +39,9 @@ _API = {
     "load_settings": "processing.settings",
     "track": "processing.tracking.tracks", "tracks_of": "processing.tracking.tracks",
     "sv": "processing.backscatter.sv", "single_targets": "processing.backscatter.target_table",
-    "write_targets_csv": "processing.backscatter.target_table", "RecordChain": "processing.pipeline", "as_tree": "processing.base.dataset",
+    "write_targets_csv": "processing.backscatter.target_table", "RecordChain": "processing.pipeline",
+    "as_tree": "processing.base.dataset",
+    "open_record": "processing.base.convert", "echopype_view": "processing.backscatter.echopype_view",
 }
 
 __getattr__, __dir__, __all__ = public_api("processing", _API, globals(), extra=())
