@@ -23,12 +23,12 @@ the echo by tens of dB.
 transmitter is 0.24 m tall (16 elements stacked in elevation): its Rayleigh distance L²/λ is
 15.8 m at 420 kHz, inside the observation range (10.5–68 m). Closer than a few times that, the
 element paths to a target on the axis differ by a sizeable fraction of a wavelength (the edge
-element's excess path L²/(8r) is 0.1 λ at 20 m, 0.16 λ at 12 m) and their sum falls short of the far-field
-sum: a loss of ≈ 53/r² dB on axis (0.37 dB at 12 m, 0.13 dB at 20 m, 0.03 dB at 40 m), the same
+element's excess path L²/(8r) is 0.1 λ at 20 m, 0.16 λ at 12 m) and their sum falls short of
+the far-field sum: a loss of ≈ 53/r² dB on axis (0.37 dB at 12 m, 0.13 dB at 20 m, 0.03 dB at 40 m), the same
 for CW and LFM because it is a property of the carrier's wavelength and the aperture. The
 receive beamformer steers plane waves, so a receive aperture of length L_r loses the same way
-(8 elements, interferometric mode: < 0.03 dB at 12 m; 16 elements, normal mode: ≈ 0.4 dB at
-12 m). :meth:`BeamPattern.near_field_db` computes both from the element geometry with each
+(8 elements, interferometric mode: 0.01 dB at 12 m; 16 elements with the Hamming window,
+normal mode: 0.16 dB at 12 m). :meth:`BeamPattern.near_field_db` computes both from the element geometry with each
 element's exact path to the located position, and :func:`target_strength_db` compensates them
 (``near_field=True``, the default; ``single_target.near_field`` in the settings). This was the
 cause of compensated TS reading 0.1–0.4 dB low at 12–20 m (docs/single_targets.md).
