@@ -187,8 +187,9 @@ TARGET_COLUMNS = (
 
 def write_targets_csv(table: xr.Dataset, path, *, accepted_only: bool = False) -> Path:
     """Write a :func:`single_targets` table as CSV (columns :data:`TARGET_COLUMNS`, angles in
-    degrees, lengths in m, TS in dB re 1 m², empty where NaN, ``Rejected_by`` empty for a single
-    target), atomically; ``accepted_only`` keeps the single targets only."""
+    degrees, lengths in m, TS in dB re 1 m², empty where not finite — NaN, or an echo spacing of
+    inf for an echo alone in its beam — and ``Rejected_by`` empty for a single target),
+    atomically; ``accepted_only`` keeps the single targets only."""
     import csv
 
     from processing.base.atomic import staged
