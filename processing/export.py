@@ -1,11 +1,10 @@
 """A dataset and its products as one SONAR-netCDF4 2.0 file (``processing.write_sonar_netcdf2``).
 
 :mod:`processing.base.sonar_netcdf2` writes the file from explicit inputs; this module gathers
-them from a dataset: the single targets the processing chain finds (the table of
-:func:`processing.backscatter.target_table.single_target_table`: its rows kept as single targets,
-with their track ids where the dataset was tracked) and the MVBS grid of :func:`processing.sv`.
-The single-target table is read by column name, so a detector that adds columns (echo length,
-phase deviation) or parameters needs no change here.
+them from a dataset: the single targets of the echosounder criteria
+(:func:`processing.single_targets`: its accepted rows, with their track ids where the dataset was
+tracked, and the criteria as the group's ``param_*`` values) and the MVBS grid of
+:func:`processing.sv`.
 """
 from __future__ import annotations
 
@@ -35,11 +34,11 @@ def single_target_columns(tree, settings=None) -> tuple[dict, dict]:
         The detection's parameters by :data:`processing.base.sonar_netcdf2.TARGET_PARAMETERS`'
         keys (those the detector has).
     """
-    from processing.backscatter.target_table import single_target_table
+    from processing.backscatter.target_table import single_targets
     from processing.base.contract import TRACKS_GROUP
     from processing.base.dataset import group_of
-    from processing.pipeline import RecordChain
-    table = single_target_table(tree, settings)
+    from processing.base.sonar_netcdf2 import TARGET_PARAMETERS
+    table = single_targets(tree, settings)
     keep = np.asarray(table["single_target"].values, bool)
     det_rows = np.flatnonzero(keep)
     cols = {"ping": table["ping"].values[keep].astype(int),
@@ -60,8 +59,8 @@ def single_target_columns(tree, settings=None) -> tuple[dict, dict]:
         of_detection = {int(d): int(ids[t] if ids is not None else t) for d, t in zip(det, owner) if d >= 0}
         track = np.array([of_detection.get(int(r), -1) for r in det_rows], int)
     cols["track_id"] = track
-    st = RecordChain(tree, settings).settings
-    params = {"ts_threshold_db": float(st.track.min_ts_db)}
+    # the criteria the table was made with, by their SONAR-netCDF4 2.0 names (its attributes)
+    params = {key: float(table.attrs[name]) for name, key in TARGET_PARAMETERS.items() if name in table.attrs}
     return cols, params
 
 
