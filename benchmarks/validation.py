@@ -398,7 +398,7 @@ def raytraced():
 
     from abacus.figures.plots import image_figures
     with tempfile.TemporaryDirectory() as tmp:
-        image_figures(processing.images_of(rt), Path(tmp), ping=0)
+        image_figures(processing.images_of(rt), Path(tmp), ping=0, tree=rt)
         shutil.copy(Path(tmp) / "fan_beam.png", ROOT / "docs" / "figures" / "pelagic_floor_rock_fan.png")
 
     return ("## Ray-traced scenes (issue 6)\n\n"

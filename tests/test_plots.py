@@ -78,7 +78,8 @@ def test_one_detection_figure_redrawn_per_ping_gives_each_ping_its_own_pixels(tm
     tree = processing.count(acoustics.simulate(acoustics.load_scene(scene), pings=range(3)))
     d0, d1, d2 = count_figure_data(tree, pings=range(3))["detections"]
     none = dict(d1, ping_index=7, fan_x_m=d1["fan_x_m"][:0], fan_z_m=d1["fan_z_m"][:0],
-                position_m=d1["position_m"][:0], in_volume=d1["in_volume"][:0])
+                position_m=d1["position_m"][:0], in_span=d1["in_span"][:0],
+                in_volume=d1["in_volume"][:0])
     far = dict(d2, ping_index=8, position_m=d2["position_m"] * [1.0, 1.0, 1.6])
     sequence = [d0, none, d1, far, d2]
     assert len(d0["fan_x_m"]) and len(d1["fan_x_m"])
