@@ -41,13 +41,20 @@ def _surface_algorithm(grid) -> dict:
             if "algorithm" in inspect.signature(grid.extract_surface).parameters else {})
 
 
-def _headless_window() -> None:
-    """Off screen without an X display, render through EGL: VTK would otherwise try X first and
-    log "bad X server connection" before falling back to it. VTK ≥ 9.4 reads this variable when
-    it makes a render window (older releases ignore it); a choice the user made is kept."""
-    if sys.platform.startswith("linux") and not os.environ.get("DISPLAY") \
-            and not os.environ.get("WAYLAND_DISPLAY"):
-        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+def _window_probe_quiet(off_screen: bool):
+    """Where ``off_screen`` and there is no X display (Linux), the making of the render window
+    with VTK's log limited to errors: VTK tries an X window first, logs "bad X server
+    connection" and goes on with EGL (or OSMesa), which is what an off-screen picture wants.
+    Only the window's making is quietened; what VTK logs while drawing is shown. pyvista < 0.45
+    (no ``vtk_verbosity``) logs as VTK does."""
+    import contextlib
+
+    import pyvista as pv
+    headless = off_screen and sys.platform.startswith("linux") and not (
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    if headless and hasattr(pv, "vtk_verbosity"):
+        return pv.vtk_verbosity("error")
+    return contextlib.nullcontext()
 
 
 def _draw_motion(plotter, scene, setup, targets, max_tracks=300):
@@ -183,13 +190,12 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     from acoustics.targets.draw import draw_targets
 
     off = not (interactive and (os.environ.get("DISPLAY") or os.name == "nt"))
-    if off:
-        _headless_window()
     setup = make_setup(scene)
     mount = setup.sonar.pose          # meshes are built in the sonar frame at rest
     pose = setup.pose_at(ping)
     to_world = pose.to_world
-    plotter = pv.Plotter(off_screen=off, window_size=list(window_size))
+    with _window_probe_quiet(off):
+        plotter = pv.Plotter(off_screen=off, window_size=list(window_size))
     plotter.set_background("white")
     rs, view = setup.ray_scene_at(scene, pose)
     if rs is not None:
