@@ -308,7 +308,7 @@ def draw_image_figures(data: dict, outdir: Path) -> list[Path]:
     return paths
 
 
-def _shared_span(values, dynamic_range_db: float = 40.0):
+def _shared_span(values, dynamic_range_db: float = 50.0):
     """One colour span for several images (e.g. both subarrays): they read alike."""
     from abacus.figures.calibrated import colour_span_db
     top = max((float(np.nanmax(v)) for v in values if np.isfinite(v).any()), default=0.0)
@@ -398,7 +398,7 @@ def count_figure_data(tree, *, pings=(0,), max_pings: int = 5, counts: bool = Tr
               "elevation_halfwidth_rad": float(attrs["counting_elevation_halfwidth_rad"]),
               "counting_range_m": tuple(float(v) for v in attrs["counting_range_m"])}
     scaled = [cell_db("ts", np.abs(im.image[i, 0]), im.range_m, cal) for i in range(len(pings))]
-    span = colour_span_db([np.nanmax(v) if np.isfinite(v).any() else np.nan for v, _ in scaled]) \
+    span = colour_span_db([np.nanmax(v) if np.isfinite(v).any() else np.nan for v, _ in scaled], 50.0) \
         if scaled else (-40.0, 0.0)
     out = []
     for i, p in enumerate(pings):
