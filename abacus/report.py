@@ -68,7 +68,7 @@ def threshold_units(ds: xr.Dataset):
     mu = {"counts": None, "noise_mean": 1.0, "thesis": float(det.get("thesis_noise_mean", 139.8))}[units]
     label = {"counts": "threshold T (ADC counts)",
              "noise_mean": "threshold T (multiples of the noise mean μ̂)",
-             "thesis": f"threshold T (thesis image units: the noise mean μ̂ = {mu:g})"}[units]
+             "thesis": f"threshold T (thesis image units: the noise mean μ̂ = {mu or 0:g})"}[units]
     return units, mu, label
 
 

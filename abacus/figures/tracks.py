@@ -105,7 +105,7 @@ def track_figures(tree, outdir: Path) -> list[Path]:
     fig = plt.figure(figsize=(15, 10))
     fixed_layout(fig, left=0.7, right=0.3, bottom=0.6, top=0.5, wspace=0.3, hspace=0.3)
     ax3 = fig.add_subplot(2, 2, 1, projection="3d")
-    views = [(fig.add_subplot(2, 2, 2), 0, 1, "seen from above"),
+    views = [(fig.add_subplot(2, 2, 2), 0, 1, "seen from above (x–y)"),
              (fig.add_subplot(2, 2, 3), 0, 2, "seen from the side (x–z)"),
              (fig.add_subplot(2, 2, 4), 1, 2, "seen from the side (y–z)")]
     lim = np.r_[outline, xyz[counted[pt]]] if counted.any() else outline
