@@ -14,6 +14,8 @@ use, so ``import processing`` is cheap)::
     sv(tree, settings=None, ...) -> DataTree   # calibrated Sv: MVBS grid and NASC (/Processing/Sv)
     tracks_of(tree) -> xarray.Dataset          # one row per track, and per track point
     open_tree(path), write_tree(tree, path)    # the dataset I/O (atomic writes)
+    open_record(path) -> DataTree              # any recording read and checked (.mat, echopype EK60/EK80, ...)
+    echopype_view(tree) -> DataTree            # the calibrated image in the EK60 convention echopype calibrates
     ProcessingSettings, load_settings(path)
 """
 from __future__ import annotations
@@ -36,6 +38,7 @@ _API = {
     "load_settings": "processing.settings",
     "track": "processing.tracking.tracks", "tracks_of": "processing.tracking.tracks",
     "sv": "processing.backscatter.sv", "RecordChain": "processing.pipeline", "as_tree": "processing.base.dataset",
+    "open_record": "processing.base.convert", "echopype_view": "processing.backscatter.echopype_view",
 }
 
 __getattr__, __dir__, __all__ = public_api("processing", _API, globals(), extra=())

@@ -67,7 +67,20 @@ def resolve_settings(tree: xr.DataTree | None, settings=None) -> ProcessingSetti
             if section is not None:
                 return validate_file(ProcessingSettings, section,
                                      file="/Provenance scene_text (processing section)")
+    if tree is not None and _recorded(tree):
+        # the 13–26 m default is the thesis scene's span, which a recording (a .mat file, a
+        # plain SONAR-netCDF4 file) knows nothing of: its image spans the whole record
+        return ProcessingSettings.model_validate({"image": {"range_m": None}})
     return ProcessingSettings()
+
+
+def _recorded(tree: xr.DataTree) -> bool:
+    """A recording, not a simulation: the root says ``data_kind: recorded``, or no scene made it
+    (no /Provenance scene text)."""
+    if str(tree.attrs.get("data_kind", "")) == "recorded":
+        return True
+    provenance = group_of(tree, PROVENANCE_GROUP)
+    return provenance is None or not provenance.attrs.get("scene_text", "")
 
 
 def noise_band_of(tree) -> float | None:
