@@ -52,16 +52,18 @@ def echogram_calibration(tree, images) -> dict | None:
     try:
         cal = calibration_of(tree)
         rec = read_record(tree)
-    except (DatasetError, KeyError):
+        st = images.settings
+        rf = RangeFilter.design(rec.replica, n_samples=rec.samples.shape[-1], rate_hz=rec.rate_hz,
+                                bandwidth_hz=rec.bandwidth_hz, range_window=st.range_window)
+        groups = rec.image_groups
+        psi = np.array([beam_solid_angle_sr(cal, SubarrayGeometry(rec.element_position_m[groups[g]],
+                                                                   st.spatial_window),
+                                            images.beam_angle_rad, rec.wavelength_m)
+                        for g in images.groups])
+    except (DatasetError, KeyError, ValueError):
+        return None         # no (usable) calibration: the figures say dB re max
+    if not (np.isfinite(cal.gain_counts_m) and cal.gain_counts_m > 0 and np.all(psi > 0)):
         return None
-    st = images.settings
-    rf = RangeFilter.design(rec.replica, n_samples=rec.samples.shape[-1], rate_hz=rec.rate_hz,
-                            bandwidth_hz=rec.bandwidth_hz, range_window=st.range_window)
-    groups = rec.image_groups
-    psi = np.array([beam_solid_angle_sr(cal, SubarrayGeometry(rec.element_position_m[groups[g]],
-                                                               st.spatial_window),
-                                        images.beam_angle_rad, rec.wavelength_m)
-                    for g in images.groups])
     return {"gain_counts_m": float(cal.gain_counts_m),
             "absorption_db_per_m": float(cal.absorption_db_per_m),
             "range_width_m": range_energy_width_m(rf, rec.sound_speed_m_s),
