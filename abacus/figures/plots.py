@@ -519,7 +519,7 @@ class _DetectionFigure:
                                ms=8, label="located, inside volume")
             self._lines.append((truth, outside, located))
             ax.set_xlabel(f"sonar {lab}")
-            ax.set_ylabel("sonar z, range along boresight (m)")
+            ax.set_ylabel("sonar z, along the boresight (m)")
             ax.grid(alpha=0.3)
             ax.invert_yaxis()              # range grows downwards, as on an echogram
         rr = np.array(d["counting_range_m"])
