@@ -45,21 +45,22 @@ def test_fan_beam_puts_a_point_echo_where_it_is():
 
 @pytest.mark.parametrize("n_pings", [1, 3, 7])
 def test_counts_are_plotted_against_whole_pings(n_pings):
-    """A ping index is a whole number: every tick on the ping axis is one (matplotlib's default
-    locator puts a 3-ping run's ticks at quarter pings)."""
+    """A ping index is a whole number, and so is a count of targets: every tick on either axis
+    is one (matplotlib's default locator puts a 3-ping run's ticks at quarter pings, and counts
+    of 2 to 17 at 2.5, 5.0, ...)."""
     import matplotlib.pyplot as plt
 
     from abacus.figures.plots import counts_figure
     x = np.arange(n_pings)
-    c = {"ping_index": x, "true_in_volume": np.full(n_pings, 5), "count_before": x + 4,
+    c = {"ping_index": x, "true_in_volume": np.full(n_pings, 5), "count_before": np.where(x % 2, 17, 2),
          "count_after": np.full(n_pings, 5), "error_before": x - 1, "error_after": 0 * x}
     fig = counts_figure(c)
     fig.canvas.draw()
     for ax in fig.axes:
-        lo, hi = ax.get_xlim()
-        ticks = [t for t in ax.get_xticks() if lo <= t <= hi]
-        assert ticks, "no tick on the ping axis"
-        assert all(float(t).is_integer() for t in ticks), ticks
+        for lim, got in ((ax.get_xlim(), ax.get_xticks()), (ax.get_ylim(), ax.get_yticks())):
+            ticks = [t for t in got if lim[0] <= t <= lim[1]]   # pings, targets: whole numbers
+            assert ticks, "no tick"
+            assert all(float(t).is_integer() for t in ticks), ticks
     plt.close(fig)
 
 

@@ -614,7 +614,7 @@ def counts_figure(c: dict):
     axes[0].plot(x, c["count_before"], line, color="tab:orange", label="detected in span (before interferometry)")
     axes[0].plot(x, c["count_after"], line, color="tab:green", label="counted in volume (after)")
     axes[0].set_ylabel("targets per ping (count)")
-    axes[0].set_xlabel("ping index")
+    axes[0].yaxis.set_major_locator(MaxNLocator(integer=True))     # whole targets
     axes[0].legend(fontsize=8)
     axes[0].grid(alpha=0.3)
     if "error_before" in c:
@@ -622,6 +622,7 @@ def counts_figure(c: dict):
         axes[1].plot(x, c["error_after"], line, color="tab:green", label="after interferometry")
         axes[1].axhline(0, color="k", lw=0.8)
         axes[1].set_ylabel("count error, counted − true (targets)")
+        axes[1].yaxis.set_major_locator(MaxNLocator(integer=True))
         axes[1].legend(fontsize=8)
     else:
         axes[1].plot(x, c["density_per_m3"], line, color="tab:green")
