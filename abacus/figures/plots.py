@@ -497,8 +497,8 @@ class _DetectionFigure:
                                pixel_m=self._pixel_m)
         ax = axes[0]
         r0, r1 = d["counting_range_m"]
-        ax.plot(*_span_outline(d["counting_range_m"], d["azimuth_halfwidth_rad"]), "--", color="tab:orange", lw=1.0,
-                label=f"counting span: r {r0:.1f}–{r1:.1f} m, "
+        ax.plot(*_span_outline(d["counting_range_m"], d["azimuth_halfwidth_rad"]), "--",
+                color="tab:orange", lw=1.0, label=f"counting span: r {r0:.1f}–{r1:.1f} m, "
                       f"|θ| ≤ {np.degrees(d['azimuth_halfwidth_rad']):.1f}°")
         span, out = d["in_span"], ~d["in_span"]
         self._marks = (ax.plot(d["fan_x_m"][span], d["fan_z_m"][span], "o", mfc="none", mec="r",
