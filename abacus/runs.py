@@ -231,9 +231,12 @@ class _RunFigures:
 
     def images(self, tree):
         """images/: the image figures of the dataset's first ping."""
+        from abacus.figures.calibrated import echogram_calibration
         from abacus.figures.plots import draw_image_figures, image_figure_data
         from processing.records import figure_images
-        self._submit("images", draw_image_figures, image_figure_data(figure_images(tree, [0])))
+        im = figure_images(tree, [0])
+        self._submit("images", draw_image_figures,
+                     image_figure_data(im, calibration=echogram_calibration(tree, im)))
 
     def counts(self, tree):
         """counts/: detections of the first three pings, and counts per ping."""
