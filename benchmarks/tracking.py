@@ -195,7 +195,7 @@ def tracking_section() -> str:
         "number in the volume / volume.\n\n"
         "![tracks of the first run, crossing school](figures/school_tracks_tracks.png)\n\n"
         "![tracks of the first run, school along the fan](figures/school_along_fan_tracks.png)\n\n"
-        "![TS along the counted tracks](figures/school_tracks_track_ts.png)\n\n"
+        "![TS of the counted tracks: per-track mean and spread, histogram](figures/school_tracks_track_ts.png)\n\n"
         "**The tracker's parts and rules, swept one at a time** (totals over the same runs; the "
         "rules are not approximations of a reference, so they live here rather than in "
         "docs/accuracy.md). `method` is the motion part (Kalman constant velocity or the thesis' "
