@@ -186,7 +186,7 @@ def tracking_section() -> str:
         "echo all the way through the volume is never counted. Stitching fragments across "
         "gaps (joining a track that ended to one starting within a few seconds when its "
         "prediction meets that one's state) was tried and did not pay: in the crossing school it "
-        "joined different fish and its coasted points raised the count by 6 %.\n"
+        "joined different fish and its coasted points raised the count by 6 % (development seeds, `max_misses` 4).\n"
         + per_seed_text
         + "\n\nSpeed error = track speed − the fish's mean speed over the track's pings; TS error "
         "= track TS (10 log10 of the mean σ_bs of its compensated detections) − the fish's, both "
