@@ -12,9 +12,10 @@ by the setting ``track.association``:
   Fitzgerald (1985) ("cheap JPDA"): a detection shared by several gates is shared among their
   tracks by weight β_ij = G_ij / (T_i + D_j − G_ij + B), G_ij the Gaussian likelihood, T_i and
   D_j its row and column sums, B the clutter density; each track updates with the weighted
-  innovations (:meth:`processing.tracking.motion.ConstantVelocityKalman.update_mixture`). The
-  track's recorded detection is its most probable one, and only where that detection's weight
-  exceeds one half is it counted as a hit (so two tracks never both own one echo).
+  innovations (:meth:`processing.tracking.motion.ConstantVelocityKalman.update_mixture`) when
+  more than one detection falls in its gate. Which detection a track holds (its hits, and the
+  detections left to start new tracks) is still the global nearest neighbour's one-to-one
+  assignment, so two tracks never both own one echo; only the state update is shared.
 """
 from __future__ import annotations
 
