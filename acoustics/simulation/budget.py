@@ -187,7 +187,7 @@ def estimate_scene(scene, *, pings: int | None = None, write: bool = True,
     per_mesh = [mesh_faces(spec, resolve) for _, spec in mesh_specs]
     faces = sum(per_mesh)
     mesh_target_faces = sum(n for (key, _), n in zip(mesh_specs, per_mesh) if key.startswith("targets"))
-    per_target = (1 + 2 * fx.multipath_order * max(1, len(scene.boundaries)))
+    per_target = (1 + 2 * fx.max_bounces * max(1, len(scene.boundaries)))
     scatterer_bytes = _SCATTERER_BYTES + (n_ch * 16.0 if fx.directivity == "huygens" else 0.0)
     n_scat = n_targets * per_target + rays + mesh_target_faces
     scatterers = n_scat * scatterer_bytes
