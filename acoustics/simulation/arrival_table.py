@@ -17,7 +17,8 @@ the unfolded length). This module turns a ping's scatterers into a table:
 
 The interaction sequence is written in propagation order, ``-``-joined, from the alphabet
 T (point target), S / F / O (specular bounce off a surface, floor, obstacle boundary),
-R (a boundary facet's backscatter: reverberation), M (a mesh target's facet).
+RS / RF / RO (a surface, floor or obstacle facet's backscatter: reverberation), M (a mesh
+target's facet).
 """
 from __future__ import annotations
 
@@ -31,7 +32,9 @@ __all__ = ["ALPHABET", "arrival_table", "direct_tags", "concat_tables", "COLUMNS
 #: the interaction alphabet of ``arrival_sequence``
 ALPHABET = {"T": "point target", "S": "specular bounce off a surface boundary",
             "F": "specular bounce off a floor boundary", "O": "specular bounce off an obstacle",
-            "R": "a boundary facet's backscatter (reverberation)", "M": "a mesh target's facet"}
+            "RS": "a surface facet's backscatter (reverberation)",
+            "RF": "a floor facet's backscatter (reverberation)",
+            "RO": "an obstacle facet's backscatter (reverberation)", "M": "a mesh target's facet"}
 
 #: column -> dtype of a ping's table (the /Vendor_specific/Arrivals variables without ``arrival_``)
 COLUMNS = {"ping_index": np.int64, "target_id": np.int64, "sequence": str, "scatterer": str,
@@ -115,9 +118,12 @@ def arrival_table(scene, setup, ping: int, vs: VirtualScatterers, targets, doppl
     if facets.any():
         mesh, face = _facets(ray_scene, view, vs.p_tx[facets])
         names = np.array([sm.name for sm in ray_scene.meshes] + [""], dtype=object)
+        # a boundary facet: R and the boundary's role (RS, RF, RO); a mesh target's: M
+        roles = np.array(["R" + sm.role[0].upper() if sm.kind == "boundary" else "M"
+                          for sm in ray_scene.meshes] + ["R"], dtype=object)
         boundary[facets] = names[mesh]
         facet[facets] = face
-        seq[facets] = np.where(vs.kind[facets] == "reverberation", "R", "M")
+        seq[facets] = roles[mesh]
     tgt = np.asarray(tags.target, np.int64)
     is_t = tgt >= 0
     ids = targets.target_id if targets.target_id is not None else np.arange(len(targets))

@@ -23,8 +23,8 @@ class PathTags:
         Row of the ping's target set whose echo the path carries (−1: a facet, not a target).
     sequence : ndarray of str, shape (S,)
         Interactions in propagation order (docs/dataset.md, "Arrivals"): ``T`` the target,
-        ``S``/``F``/``O`` a specular bounce off a surface, floor or obstacle, ``R``/``M`` a
-        boundary's or mesh target's facet; joined by ``-`` (``S-T-F``). Empty: not yet known.
+        ``S``/``F``/``O`` a specular bounce off a surface, floor or obstacle, ``RS``/``RF``/``RO``
+        a surface's, floor's or obstacle's facet (reverberation), ``M`` a mesh target's facet; joined by ``-`` (``S-T-F``). Empty: not yet known.
     via : ndarray of str, shape (S,)
         The boundaries bounced off, in order, ``;``-separated (``name#facet`` for a curved one).
     """

@@ -442,8 +442,8 @@ _ARRIVALS = Group(f"/{ARRIVALS_GROUP}", "abacus' per-arrival ground truth: one r
     _a("target_id", None, "i", "the target whose echo it is (`target_id` of /Vendor_specific); "
        "−1 for a facet"),
     _a("sequence", None, "U", "interactions in propagation order, `-`-joined: T target, S/F/O "
-       "specular bounce off a surface/floor/obstacle, R boundary facet (reverberation), M mesh "
-       "target facet (`T`, `S-T`, `T-S`, `S-T-S`, `F-T-S`, `R`)"),
+       "specular bounce off a surface/floor/obstacle, RS/RF/RO a surface/floor/obstacle facet "
+       "(reverberation), M a mesh target's facet (`T`, `S-T`, `T-S`, `S-T-S`, `F-T-S`, `RF`)"),
     _a("scatterer", None, "U", "`target <id>`, or `<boundary or mesh target>#<facet>`"),
     _a("boundary", None, "U", "the boundary or mesh target of a facet (empty for a target)"),
     _a("facet", None, "i", "the facet's index in its mesh (−1 for a target)"),
