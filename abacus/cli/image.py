@@ -15,6 +15,9 @@ def add_parser(sub):
     i.add_argument("--ping", type=int, default=0, help="ping to plot (index in the file)")
     i.add_argument("--images", choices=["full", "native"], default="full",
                    help="store every interpolated row (default) or the data's own range sampling")
+    i.add_argument("--labels", action="store_true",
+                   help="also write /Processing/Labels: per cell the dominant contributor, its share "
+                        "and class (needs a dataset simulated with --arrivals)")
     add_output_options(i)
     i.set_defaults(func=command)
 
@@ -31,7 +34,7 @@ def command(args) -> int:
     n = tree_pings(tree)
     if not 0 <= args.ping < max(n, 1):
         raise UsageError(f"--ping {args.ping}: the dataset has pings 0..{n - 1} (indices in the file)")
-    out_tree = processing.image(tree, args.settings, storage=args.images)
+    out_tree = processing.image(tree, args.settings, storage=args.images, labels=args.labels)
     # both outputs to temporaries, renamed into place together at the end
     with staged_set() as outputs:
         if out is not None:

@@ -80,14 +80,26 @@ class BeamPattern:
         ndarray, shape (n,)
             The two-way amplitude pattern, 1 on the transmitter's axis for on-axis elements.
         """
+        return self.transmit(directions) * self.receive(directions)
+
+    @staticmethod
+    def _unit(directions):
         u = np.asarray(directions, float).reshape(-1, 3)
         norm = np.linalg.norm(u, axis=1, keepdims=True)
-        u = np.where(norm > 0, u / np.where(norm > 0, norm, 1.0), np.array([0.0, 0.0, 1.0]))
+        return np.where(norm > 0, u / np.where(norm > 0, norm, 1.0), np.array([0.0, 0.0, 1.0]))
+
+    def transmit(self, directions):
+        """|E_t(u)|: the transmitter's one-way pattern towards ``directions`` (n, 3), shape (n,)
+        (1 on its axis)."""
+        u = self._unit(directions)
         phase = np.exp(1j * self.k * ((self.tx_center_m - self._tx_ref) @ u.T)).T    # (n, n_t)
-        e_t = np.abs((self._pistons(u, self.tx_size_m, self.tx_rotation_rad) * phase)
-                     @ self.tx_weight) / np.abs(self.tx_weight.sum())
-        d = self._pistons(u, self.rx_size_m, self.rx_rotation_rad).mean(axis=1)
-        return e_t * np.abs(d)
+        return np.abs((self._pistons(u, self.tx_size_m, self.tx_rotation_rad) * phase)
+                      @ self.tx_weight) / np.abs(self.tx_weight.sum())
+
+    def receive(self, directions):
+        """|D(u)|: the receive elements' one-way pattern from ``directions`` (n, 3), shape (n,)."""
+        u = self._unit(directions)
+        return np.abs(self._pistons(u, self.rx_size_m, self.rx_rotation_rad).mean(axis=1))
 
 
 def beam_pattern_of(tree, subarray: str = "A") -> BeamPattern:

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 __all__ = ["ROOT_GROUP", "ENVIRONMENT_GROUP", "PLATFORM_GROUP", "PROVENANCE_GROUP", "SONAR_GROUP",
            "BEAM_GROUP_NAME", "ELEMENT_GROUP", "TRUTH_GROUP", "ARRIVALS_GROUP", "PROCESSING_GROUP", "DETECTIONS_GROUP",
-           "COUNTS_GROUP", "SV_GROUP", "TRACKS_GROUP", "PRODUCT_GROUPS", "LEGACY_ELEMENT_GROUP",
+           "COUNTS_GROUP", "SV_GROUP", "TRACKS_GROUP", "LABELS_GROUP", "PRODUCT_GROUPS", "LEGACY_ELEMENT_GROUP",
            "LEGACY_TRUTH_GROUP", "CONVENTIONS", "CHANNEL", "KINDS", "Variable", "Attribute", "Group",
            "GROUPS", "group_spec", "node_path", "markdown", "MARKDOWN_BEGIN", "MARKDOWN_END"]
 
@@ -50,12 +50,14 @@ DETECTIONS_GROUP = f"{PROCESSING_GROUP}/Detections"
 COUNTS_GROUP = f"{PROCESSING_GROUP}/Counts"
 SV_GROUP = f"{PROCESSING_GROUP}/Sv"
 TRACKS_GROUP = f"{PROCESSING_GROUP}/Tracks"
+LABELS_GROUP = f"{PROCESSING_GROUP}/Labels"
 PRODUCT_GROUPS = {
     PROCESSING_GROUP: "processing.records: images and how they were made",
     DETECTIONS_GROUP: "processing.records: one row per detection",
     COUNTS_GROUP: "processing.records: counts and densities per ping",
     SV_GROUP: "processing.backscatter.sv: MVBS grid and NASC",
     TRACKS_GROUP: "processing.tracking.tracks: tracks and track points",
+    LABELS_GROUP: "processing.imaging.labels: what made each image cell (simulated data with arrivals)",
 }
 
 #: the layout abacus wrote before SONAR-netCDF4 1.0 (read by `abacus convert`)

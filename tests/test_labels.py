@@ -1,0 +1,143 @@
+"""Label cubes (processing/imaging/labels.py): in the image of two targets under a flat sea, the
+labels name each target's cell, its grating-lobe ghost and its surface ghosts as what they are
+and whose they are — computed from the arrivals table through the image's own range and beam
+responses, never by imaging a target alone."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import acoustics
+import processing
+from acoustics.scene.load import scene_from_text
+from processing.imaging.labels import CLASSES
+
+CODE = {v: k for k, v in CLASSES.items()}
+
+#: target A (id 0) at 17 m, −7°: its grating lobe images it again near +7°; target B (id 1) at
+#: 21 m, +1.5°; both level with the sonar, 5 m under a pressure-release sea (their surface
+#: paths come ~1.5 m and ~1.8 m behind)
+GHOSTS = """
+schema_version: 1
+name: two-targets-ghosts
+seed: 30
+sonar:
+  pose: {position_m: [0.0, 0.0, 5.0], boresight: [1.0, 0.0, 0.0], receiver_axis: [0.0, 1.0, 0.0]}
+medium: {sound_speed_m_s: 1500.0}
+targets:
+  points:
+    - {frame: world, position_m: [16.8733, -2.0718, 5.0], label: A}
+    - {frame: world, position_m: [20.9928, 0.5497, 5.0], label: B}
+boundaries:
+  - name: sea surface
+    role: surface
+    mesh: {shape: plane, center_m: [20.0, 0.0, 0.0], normal: [0.0, 0.0, 1.0], size_m: [80.0, 40.0]}
+effects: {max_bounces: 1, arrivals: {enabled: true}}
+processing:
+  image: {range_m: [15.0, 25.0], beamformer: delay_and_sum, azimuth_span_deg: 15.0, n_beams: 121}
+"""
+
+
+@pytest.fixture(scope="module")
+def labelled():
+    tree = acoustics.simulate(scene_from_text(GHOSTS), pings=1)
+    out = processing.image(tree, labels=True)
+    return tree, out
+
+
+def _peak_near(power, row, beam, dr=4, db=3):
+    """The brightest cell within ±dr rows and ±db beams of (row, beam)."""
+    r0, b0 = max(row - dr, 0), max(beam - db, 0)
+    win = power[r0:row + dr + 1, b0:beam + db + 1]
+    r, b = np.unravel_index(np.argmax(win), win.shape)
+    return r0 + r, b0 + b
+
+
+def _cell(im, delay_s, sin_az):
+    return (int(np.argmin(np.abs(im.time_s - delay_s))),
+            int(np.argmin(np.abs(np.sin(im.beam_angle_rad) - sin_az))))
+
+
+def test_labels_name_targets_and_their_ghosts(labelled):
+    tree, out = labelled
+    arr = tree["Vendor_specific/Arrivals"].ds
+    lab = out["Processing/Labels"].ds
+    im = processing.images_of(out)
+    power = np.abs(im.image[0, 0]) ** 2
+    cls, ids = lab["label_class"].values[0, 0], lab["label_id"].values[0, 0]
+    frac = lab["label_fraction"].values[0, 0]
+    seq = arr["arrival_sequence"].values.astype(str)
+    lam = im.wavelength_m
+    eg = tree["Sonar/Beam_group1"].ds
+    x = eg["element_x"].values[eg["element_subarray"].values.astype(str) == "A"]
+    pitch = float(np.median(np.diff(np.sort(x))))
+    checked = []
+    for tid in (0, 1):
+        own = arr["arrival_target_id"].values == tid
+        for s, want in (("T", "target"), ("S-T", "multipath_ghost"), ("T-S", "multipath_ghost")):
+            i = int(np.flatnonzero(own & (seq == s))[0])
+            az, el = arr["arrival_azimuth"].values[i], arr["arrival_elevation"].values[i]
+            r, b = _peak_near(power, *_cell(im, arr["arrival_delay"].values[i], np.sin(az) * np.cos(el)))
+            assert CLASSES[int(cls[r, b])] == want, (tid, s)
+            assert ids[r, b] == tid and frac[r, b] > 0.5, (tid, s)
+            if s != "T":
+                # an echo of the image, not a sidelobe: 20 dB above the same beam halfway back
+                # to the direct echo
+                r_direct = _cell(im, arr["arrival_delay"].values[own & (seq == "T")][0], 0.0)[0]
+                assert power[r, b] > 100 * power[(r + r_direct) // 2, b], (tid, s)
+            checked.append((tid, s))
+    # A's grating lobe: sin θ = sin(−7°) + λ/d, inside the ±7.5° image
+    i = int(np.flatnonzero((arr["arrival_target_id"].values == 0) & (seq == "T"))[0])
+    u_ghost = np.sin(arr["arrival_azimuth"].values[i]) + lam / pitch
+    assert abs(u_ghost) < np.sin(np.radians(7.5))
+    r, b = _peak_near(power, *_cell(im, arr["arrival_delay"].values[i], u_ghost))
+    assert CLASSES[int(cls[r, b])] == "grating_lobe_ghost" and ids[r, b] == 0
+    r_t, b_t = _peak_near(power, *_cell(im, arr["arrival_delay"].values[i], np.sin(arr["arrival_azimuth"].values[i])))
+    assert abs(10 * np.log10(power[r, b] / power[r_t, b_t])) < 3.0      # as bright as A itself
+    assert len(checked) == 6
+
+
+def test_expected_energy_follows_the_image(labelled):
+    """At each target's own peak (level with the sonar, away from the transmitter's nulls) the
+    label's expected energy, from the arrivals table and the image's responses, is the image's
+    energy to 0.5 dB."""
+    tree, out = labelled
+    arr = tree["Vendor_specific/Arrivals"].ds
+    im = processing.images_of(out)
+    power = np.abs(im.image[0, 0]) ** 2
+    expected = out["Processing/Labels"].ds["label_expected_power"].values[0, 0]
+    seq = arr["arrival_sequence"].values.astype(str)
+    for i in np.flatnonzero(seq == "T"):
+        r, b = _peak_near(power, *_cell(im, arr["arrival_delay"].values[i], np.sin(arr["arrival_azimuth"].values[i])))
+        assert abs(10 * np.log10(expected[r, b] / power[r, b])) < 0.5
+
+
+def test_noise_cells_are_noise():
+    """With receiver noise, cells far from every echo are labelled noise, their share near 1."""
+    text = GHOSTS.replace("effects: {", "noise: {enabled: true}\neffects: {")
+    out = processing.image(acoustics.simulate(scene_from_text(text), pings=1), labels=True)
+    lab = out["Processing/Labels"].ds
+    cls = lab["label_class"].values[0, 0]
+    frac = lab["label_fraction"].values[0, 0]
+    assert (cls == CODE["noise"]).mean() > 0.5
+    assert np.median(frac[cls == CODE["noise"]]) > 0.99
+    assert (cls == CODE["target"]).any()
+
+
+def test_labels_need_arrivals():
+    tree = acoustics.simulate(scene_from_text(GHOSTS.replace("arrivals: {enabled: true}", "doppler: false")),
+                              pings=1)
+    with pytest.raises(processing.DatasetError, match="--arrivals"):
+        processing.image(tree, labels=True)
+
+
+def test_cli_writes_labels_with_the_image(labelled, tmp_path, capsys):
+    from abacus.cli.app import main
+    from processing.base.dataset import open_tree, write_tree
+    tree, _ = labelled
+    write_tree(tree, tmp_path / "sim.nc")
+    assert main(["image", str(tmp_path / "sim.nc"), "-o", str(tmp_path / "img.nc"), "--labels"]) == 0
+    back = open_tree(tmp_path / "img.nc")
+    lab = back["Processing/Labels"].ds
+    assert lab["label_class"].shape == back["Processing"].ds["image_r"].shape
+    assert set(np.unique(lab["label_class"].values)) <= set(CLASSES)
