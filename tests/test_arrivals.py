@@ -328,3 +328,23 @@ def test_doppler_of_each_path_and_resynthesis_with_doppler():
         assert abs(fd - (-f0 * rate / c)) < 1e-6 * f0 / c, s
     x = _samples(tree)
     assert np.max(np.abs(_resynthesise(scene, tree) - x)) < 1e-6 * np.max(np.abs(x))
+
+
+def test_old_and_new_key_together_is_one_clear_line():
+    from acoustics.scene.errors import SceneError
+    with pytest.raises(SceneError, match="multipath_order and max_bounces both given"):
+        scene_from_text(WAVEGUIDE.replace("max_bounces: 2", "max_bounces: 2, multipath_order: 2"))
+
+
+def test_a_path_reached_twice_counts_once():
+    """Two legs of one sequence that reach the same image point (a glint found from two facets)
+    make one path, not two; distinct glints stay."""
+    scene = _scene(SWELL)
+    rs = make_setup(scene).ray_scene
+    t_tgt = np.array([0, 0, 0])
+    t_seq = np.array([1, 1, 1])
+    t_pt = np.array([[0.0, 0.0, 10.0], [0.0, 0.0, 10.0 + 2e-5], [0.0, 0.5, 10.0]])
+    r_tgt, r_seq, r_pt = np.array([0]), np.array([0]), np.array([[0.0, 0.0, 9.0]])
+    ti, ri = rs.distinct_paths(np.arange(3), np.zeros(3, int), t_tgt, t_seq, r_seq, t_pt, r_pt)
+    assert sorted(ti.tolist()) in ([0, 2], [1, 2]) and ri.tolist() == [0, 0]
+    assert rs.caster.rays_cast.get("duplicate_paths_dropped") == 1

@@ -556,14 +556,8 @@ class RayScene:
         if ti.size == 0:
             return VirtualScatterers.empty()
         # a path reached twice (two specular points of one sequence that converged to the same
-        # point) counts once: same target, same sequences, same image points to 1 µm
-        key = np.column_stack([t_tgt[ti], t_seq[ti], r_seq[ri],
-                               np.round(t_pt[ti] / 1e-6), np.round(r_pt[ri] / 1e-6)])
-        _, first = np.unique(key, axis=0, return_index=True)
-        if first.size < ti.size:
-            first = np.sort(first)
-            self.caster._count("duplicate_paths_dropped", int(ti.size - first.size))
-            ti, ri = ti[first], ri[first]
+        # point) counts once: same target, same sequences, image points within 0.1 mm
+        ti, ri = self.distinct_paths(ti, ri, t_tgt, t_seq, r_seq, t_pt, r_pt)
         rates = None if vel is None and v_s is None else t_rate[ti] + r_rate[ri]
         path_tags = None
         if tags:
@@ -588,6 +582,23 @@ class RayScene:
         return VirtualScatterers(_out_of(view, t_pt[ti]), _out_of(view, r_pt[ri]),
                                  q[t_tgt[ti]] * t_c[ti] * r_c[ri], np.full(ti.size, "multipath"),
                                  rates, tags=path_tags)
+
+    def distinct_paths(self, ti, ri, t_tgt, t_seq, r_seq, t_pt, r_pt, tol_m: float = 1e-4):
+        """The joined legs (ti, ri) less repeats of one path: rows of the same target and
+        bounce sequences whose transmit and receive image points agree within ``tol_m``."""
+        length = np.linalg.norm(t_pt[ti], axis=1) + np.linalg.norm(r_pt[ri], axis=1)
+        order = np.lexsort((length, r_seq[ri], t_seq[ti], t_tgt[ti]))
+        a, b = order[:-1], order[1:]
+        same = ((t_tgt[ti][a] == t_tgt[ti][b]) & (t_seq[ti][a] == t_seq[ti][b])
+                & (r_seq[ri][a] == r_seq[ri][b])
+                & (np.linalg.norm(t_pt[ti][a] - t_pt[ti][b], axis=1) < tol_m)
+                & (np.linalg.norm(r_pt[ri][a] - r_pt[ri][b], axis=1) < tol_m))
+        if not same.any():
+            return ti, ri
+        keep = np.ones(ti.size, bool)
+        keep[b[same]] = False
+        self.caster._count("duplicate_paths_dropped", int((~keep).sum()))
+        return ti[keep], ri[keep]
 
     # -------------------------------------------------------------- mesh targets
     def mesh_targets(self, view: Pose | None = None) -> VirtualScatterers:

@@ -220,7 +220,7 @@ class EffectsSpec(ConfigModel):
             data = dict(data)
             old = data.pop("multipath_order")
             if "max_bounces" in data:
-                raise ValueError("effects.multipath_order and effects.max_bounces both given: "
+                raise ValueError("multipath_order and max_bounces both given: "
                                  "keep max_bounces (multipath_order is its old name)")
             warnings.warn("effects.multipath_order is deprecated: read as effects.max_bounces "
                           "(the same count of bounces per leg, now for every boundary)",
