@@ -165,41 +165,42 @@ def label_cube(*, time_s, beam_angle_rad, phase_center_m, geometry: SubarrayGeom
     support = t_chi[chi >= 10 ** (floor_db / 20)]
     lo_t, hi_t = float(support.min()), float(support.max())
     ping_of = np.asarray(arrivals["ping_index"], np.int64)
+    steer = np.exp(-1j * k * (x @ u_beam.T))                                # (n_el, b)
     for pi, p in enumerate(pings):
-        rows_a = np.flatnonzero((ping_of == p) & (peak > 0))
-        for chunk in np.array_split(rows_a, max(1, rows_a.size // 2048)):
+        # this ping's arrivals that reach the image, in order of delay: for a given row offset
+        # the rows they land on are then sorted, and the arrivals sharing a row are a run
+        sel = np.flatnonzero((ping_of == p) & (peak > 0) & (tau + hi_t >= t_rows[0])
+                             & (tau + lo_t <= t_rows[-1]))
+        sel = sel[np.argsort(tau[sel], kind="stable")]
+        flat_best = best[pi].reshape(-1)
+        flat_arrival = arrival[pi].reshape(-1)
+        for chunk in np.array_split(sel, max(1, sel.size // 4096)):
             if chunk.size == 0:
                 continue
             ph = np.exp(1j * k * (u_arr[chunk] @ x.T))                     # (a, n_el)
-            steer = np.exp(-1j * k * (x @ u_beam.T))                        # (n_el, b)
-            af = np.abs((ph * geometry.weights) @ steer) / geometry.weights.sum()   # (a, b)
+            amp_b = peak[chunk, None] * np.abs((ph * geometry.weights) @ steer) / geometry.weights.sum()
             first = np.searchsorted(t_rows, tau[chunk] + lo_t, "left")
-            last = np.searchsorted(t_rows, tau[chunk] + hi_t, "right")
-            width = int(np.max(last - first)) if chunk.size else 0
-            for w in range(width):
+            last = np.minimum(np.searchsorted(t_rows, tau[chunk] + hi_t, "right"), n_r)
+            for w in range(int(np.max(last - first))):
                 r = first + w
-                ok = r < np.minimum(last, n_r)
+                ok = r < last
                 if not ok.any():
                     continue
-                a_idx, r = chunk[ok], r[ok]
-                g = np.interp(t_rows[r] - tau[a_idx], t_chi, chi, left=0.0, right=0.0)
-                pw = (peak[a_idx, None] * af[ok] * g[:, None]) ** 2          # (a, b)
-                np.add.at(total[pi], (np.repeat(r, n_b), np.tile(np.arange(n_b), r.size)),
-                          pw.ravel())
-                # the strongest of this pass per cell, then against the running best
-                cell = r[:, None] * n_b + np.arange(n_b)
-                order = np.lexsort((-pw.ravel(), cell.ravel()))
-                c_sorted = cell.ravel()[order]
-                keep = np.ones(order.size, bool)
-                keep[1:] = c_sorted[1:] != c_sorted[:-1]
-                top = order[keep]
-                cells = cell.ravel()[top]
-                vals = pw.ravel()[top]
-                who = np.repeat(a_idx, n_b)[top]
-                flat_best = best[pi].reshape(-1)
-                better = vals > flat_best[cells]
-                flat_best[cells[better]] = vals[better]
-                arrival[pi].reshape(-1)[cells[better]] = who[better]
+                idx = np.flatnonzero(ok)
+                rr = r[idx]
+                g = np.interp(t_rows[rr] - tau[chunk[idx]], t_chi, chi, left=0.0, right=0.0)
+                pw = (amp_b[idx] * g[:, None]) ** 2                          # (a', b)
+                starts = np.flatnonzero(np.r_[True, rr[1:] != rr[:-1]])
+                rows_u = rr[starts]
+                total[pi, rows_u] += np.add.reduceat(pw, starts, axis=0)
+                top = np.maximum.reduceat(pw, starts, axis=0)                # (runs, b)
+                run = np.repeat(np.arange(starts.size), np.diff(np.r_[starts, idx.size]))
+                pos = np.where(pw == top[run], np.arange(idx.size)[:, None], idx.size)
+                who = chunk[idx][np.minimum.reduceat(pos, starts, axis=0)]   # (runs, b)
+                cells = rows_u[:, None] * n_b + np.arange(n_b)
+                better = top > flat_best[cells]
+                flat_best[cells[better]] = top[better]
+                flat_arrival[cells[better]] = who[better]
     noise = float(noise_power_counts2)
     power = total + noise
     noisy = noise >= best
@@ -225,7 +226,7 @@ def label_cube(*, time_s, beam_angle_rad, phase_center_m, geometry: SubarrayGeom
     return LabelCube(source, arrival, frac.astype(np.float32), cls, power.astype(np.float32))
 
 
-def labels_dataset(tree, images, record, settings) -> "xarray.Dataset":
+def labels_dataset(tree, images, record, settings):
     """/Processing/Labels of a simulated dataset's images: one label cube per image group.
 
     Parameters
