@@ -45,6 +45,16 @@ def command(args) -> int:
             tmp = outputs.path(plots)
             tmp.mkdir()
             image_figures(figure_images(out_tree, [args.ping]), tmp, ping=args.ping)
+            if args.labels:
+                from abacus.figures.labels import draw_label_figure
+                from processing.base.contract import LABELS_GROUP
+                im = processing.images_of(out_tree)
+                lab = out_tree[LABELS_GROUP].ds
+                draw_label_figure(im.image[args.ping, 0],
+                                  *(lab[k].values[args.ping, 0] for k in
+                                    ("label_class", "label_id", "label_fraction")),
+                                  im.range_m, im.beam_angle_rad, tmp / "labels.png",
+                                  title=f"ping {args.ping}")
     if out is not None:
         print(f"wrote {out}")
     if plots is not None:
