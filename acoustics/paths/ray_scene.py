@@ -556,8 +556,13 @@ class RayScene:
         if ti.size == 0:
             return VirtualScatterers.empty()
         # a path reached twice (two specular points of one sequence that converged to the same
-        # point) counts once: same target, same sequences, image points within 0.1 mm
-        ti, ri = self.distinct_paths(ti, ri, t_tgt, t_seq, r_seq, t_pt, r_pt)
+        # point) counts once: same target, same sequences, image points within 0.1 mm. Image
+        # sources give one path per sequence: only legs with a curved bounce can repeat
+        curved = (t_face[ti] >= 0) | (r_face[ri] >= 0)
+        if curved.sum() > 1:
+            c_ti, c_ri = self.distinct_paths(ti[curved], ri[curved], t_tgt, t_seq, r_seq, t_pt, r_pt)
+            if c_ti.size < int(curved.sum()):
+                ti, ri = np.concatenate([ti[~curved], c_ti]), np.concatenate([ri[~curved], c_ri])
         rates = None if vel is None and v_s is None else t_rate[ti] + r_rate[ri]
         path_tags = None
         if tags:
@@ -586,13 +591,13 @@ class RayScene:
     def distinct_paths(self, ti, ri, t_tgt, t_seq, r_seq, t_pt, r_pt, tol_m: float = 1e-4):
         """The joined legs (ti, ri) less repeats of one path: rows of the same target and
         bounce sequences whose transmit and receive image points agree within ``tol_m``."""
-        length = np.linalg.norm(t_pt[ti], axis=1) + np.linalg.norm(r_pt[ri], axis=1)
-        order = np.lexsort((length, r_seq[ri], t_seq[ti], t_tgt[ti]))
+        tg, ts, rq, tp, rp = t_tgt[ti], t_seq[ti], r_seq[ri], t_pt[ti], r_pt[ri]
+        length = np.linalg.norm(tp, axis=1) + np.linalg.norm(rp, axis=1)
+        order = np.lexsort((length, rq, ts, tg))
         a, b = order[:-1], order[1:]
-        same = ((t_tgt[ti][a] == t_tgt[ti][b]) & (t_seq[ti][a] == t_seq[ti][b])
-                & (r_seq[ri][a] == r_seq[ri][b])
-                & (np.linalg.norm(t_pt[ti][a] - t_pt[ti][b], axis=1) < tol_m)
-                & (np.linalg.norm(r_pt[ri][a] - r_pt[ri][b], axis=1) < tol_m))
+        same = ((tg[a] == tg[b]) & (ts[a] == ts[b]) & (rq[a] == rq[b])
+                & (np.linalg.norm(tp[a] - tp[b], axis=1) < tol_m)
+                & (np.linalg.norm(rp[a] - rp[b], axis=1) < tol_m))
         if not same.any():
             return ti, ri
         keep = np.ones(ti.size, bool)
