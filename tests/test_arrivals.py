@@ -384,3 +384,11 @@ def test_swell_bounce_delays_are_fermat_paths():
         got = tab["arrival_delay"].values[seq == s]
         assert got.size == 1, s
         assert abs(got[0] - length / c) < 1e-9, s
+
+
+def test_old_key_out_of_range_is_one_line():
+    from acoustics.scene.errors import SceneError
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")          # no deprecation warning before the error
+        with pytest.raises(SceneError, match=r"multipath_order \(now max_bounces\) must be an integer from 0 to 4"):
+            scene_from_text(WAVEGUIDE.replace("max_bounces: 2", "multipath_order: 9"))

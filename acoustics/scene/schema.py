@@ -222,6 +222,10 @@ class EffectsSpec(ConfigModel):
             if "max_bounces" in data:
                 raise ValueError("multipath_order and max_bounces both given: "
                                  "keep max_bounces (multipath_order is its old name)")
+            if isinstance(old, bool) or not isinstance(old, int) or not 0 <= old <= MAX_BOUNCES:
+                # one line, not a deprecation warning and then an error about the new key
+                raise ValueError(f"multipath_order (now max_bounces) must be an integer from 0 "
+                                 f"to {MAX_BOUNCES}, got {old!r}")
             warnings.warn("effects.multipath_order is deprecated: read as effects.max_bounces "
                           "(the same count of bounces per leg, now for every boundary)",
                           FutureWarning, stacklevel=2)
