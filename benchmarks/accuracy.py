@@ -509,6 +509,58 @@ def max_bounces():
 
 
 @knob
+def label_model():
+    """Label cubes (processing/imaging/labels.py) against the images they label: the expected
+    energy each cell gets from the arrivals table through the image's own range and beam
+    responses, compared with the image's energy."""
+    import warnings
+
+    import processing
+    from acoustics import SceneWarning
+    from acoustics.simulation.run import simulate
+
+    rows = []
+    for name in ("two_targets", "ghost_grating_edge", "ghost_outside_scan", "ghost_stagger",
+                 "multipath_surface", "swell_ghost", "pelagic_wind_sea"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SceneWarning)
+            tree = simulate(name, pings=1, arrivals=True)
+        fx = tree["Vendor_specific/Arrivals"].sizes["arrival"]
+        t_img = best_time(lambda: processing.image(tree), repeat=2)
+        t_lab = best_time(lambda: processing.image(tree, labels=True), repeat=2)
+        out = processing.image(tree, labels=True)
+        im = processing.images_of(out)
+        lab = out["Processing/Labels"].ds
+        power = np.abs(im.image[0]) ** 2
+        expected = lab["label_expected_power"].values[0]
+        single = (lab["label_fraction"].values[0] > 0.99) & (power > 1e-3 * power.max())
+        d = np.abs(10 * np.log10(expected[single] / power[single]))
+        peak = power == power.max()
+        rows.append([name, f"{fx:,}", f"{int(single.sum()):,}", f"{np.median(d):.2f}",
+                     f"{np.percentile(d, 99):.2f}", f"{float(10 * np.log10(expected[peak][0] / power[peak][0])):+.2f}",
+                     f"{t_img * 1e3:.0f}", f"{t_lab * 1e3:.0f}"])
+    return ("## Label cubes: expected energy vs the image (`processing.image(labels=True)`)\n\n"
+            "Each scene simulated with its arrivals (default floor −80 dB), imaged with its own "
+            "settings and labelled. Compared: the cells (both images of the ping) that one "
+            "arrival dominates (≥ 99 % of the expected energy) within 30 dB of the image's peak; "
+            "|ΔE|: |10 log10(expected / |I|²)|. The label model adds arrivals in power, each through "
+            "the transmitter's field at its scatterer (elements summed at their exact distances: "
+            "the near field), the receive element pattern, the beam's response to its exact "
+            "(spherical) front and the compressed pulse to −60 dB; the reference is the image "
+            "itself. Time: imaging alone and imaging with labels (best of "
+            "2).\n\n"
+            + table(["scene", "arrivals", "cells compared", "median |ΔE| (dB)", "99th pct (dB)",
+                     "at the peak (dB)", "image (ms)", "image + labels (ms)"], rows)
+            + "\n\nWhere several arrivals share a cell (a ghost's S-T and T-S paths at one "
+              "delay, a school) their phases decide the image's energy and the labels' share is "
+              "that of the expected energy (the school of pelagic_wind_sea: its 99th percentile). A "
+              "far-field model instead (plane fronts, the transmitter's far-field pattern) was "
+              "30 dB off for ghost_stagger's target, which sits at 24 m — two Rayleigh distances "
+              "of the 0.2 m transmitter — in the first null of its far-field pattern, and 4 dB off "
+              "for swell_ghost's, 6° up in its sidelobes.")
+
+
+@knob
 def mesh_resolution():
     """Sphere facets: icosphere subdivisions 2..6 vs modal series and vs the finest PO."""
     import trimesh

@@ -100,7 +100,8 @@ def test_labels_name_targets_and_their_ghosts(labelled):
 def test_expected_energy_follows_the_image(labelled):
     """Wherever one arrival dominates (≥ 99 % of the expected energy) within 30 dB of the image's
     peak — the targets, their sidelobes, their ghosts — the label's expected energy, from the
-    arrivals table and the image's responses alone, is the image's energy to 0.5 dB."""
+    arrivals table and the image's responses alone, is the image's energy to 0.5 dB (median
+    0.1 dB: docs/accuracy.md, "Label cubes", has seven scenes)."""
     tree, out = labelled
     im = processing.images_of(out)
     power = np.abs(im.image[0, 0]) ** 2
@@ -108,7 +109,8 @@ def test_expected_energy_follows_the_image(labelled):
     expected = lab["label_expected_power"].values[0, 0]
     single = (lab["label_fraction"].values[0, 0] > 0.99) & (power > 1e-3 * power.max())
     assert single.sum() > 1000
-    assert np.all(np.abs(10 * np.log10(expected[single] / power[single])) < 0.5)
+    err = np.abs(10 * np.log10(expected[single] / power[single]))
+    assert np.all(err < 0.5) and np.median(err) < 0.1
     # the ghosts' rows too (A's surface ghost, 30 dB down, in the beams where it peaks)
     ghosts = single & (lab["label_class"].values[0, 0] == CODE["multipath_ghost"])
     assert ghosts.sum() > 50

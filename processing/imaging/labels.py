@@ -4,15 +4,18 @@ For every (ping, range cell, beam) of an image the label says which arrival of
 /Vendor_specific/Arrivals (docs/dataset.md, "Arrivals") contributes the most energy, what
 fraction of the cell's expected energy that is, and a class. Nothing is re-simulated: each
 arrival's expected contribution to each cell follows from the arrival's amplitude, delay and
-directions and the image's *known* responses — the same far-field model the TS compensation
-uses (processing/backscatter/target_strength.py), written out here for one path:
+legs and the image's *known* responses (the element geometry the dataset carries, as the TS
+compensation reads it: processing/backscatter/target_strength.py), written out for one path:
 
-    P_a(r, b) = |G a E_t(û_dep) D(û_arr) B_b(û_arr) χ(t_r − τ_a)|²      (ADC counts²)
+    P_a(r, b) = |G a E_t(P_tx) D(û_arr) B_b(P_rx) χ(t_r − τ_a)|²      (ADC counts²)
 
 with a the arrival's complex amplitude (re the source level at 1 m), G = k Σ w_e the counts
-per unit amplitude of one element on the transmitter's axis, E_t and D the transmit and receive
-element patterns (1 on axis), B_b the beam's array factor (the image's own spatial window,
-1 on its axis: the images are calibrated to the echo amplitude at one element),
+per unit amplitude of one element on the transmitter's axis, E_t the transmitter's field at the
+(image) scatterer P_tx = T + r1 û_dep, its elements summed at their exact distances (the near
+field: a target two Rayleigh distances away in a null of the far-field pattern is 30 dB off
+without it), D the receive element pattern (1 on axis), B_b the beam's response to the exact
+spherical front from P_rx = R + r2 û_arr (the image's own spatial window, 1 on its axis: the
+images are calibrated to the echo amplitude at one element),
 χ the compressed pulse (the image's own range filter, 1 at its peak), t_r the row's two-way
 delay and τ_a the arrival's delay to the image group's phase centre. Receiver noise adds
 2σ² × the image's noise power gain to every cell. Arrivals are summed in power (their phases
@@ -99,7 +102,8 @@ def _classify(seq: np.ndarray) -> np.ndarray:
 
 def label_cube(*, time_s, beam_angle_rad, phase_center_m, geometry: SubarrayGeometry,
                wavelength_m: float, rfilter: RangeFilter, arrivals: dict, ping_index,
-               receive_reference_m, gain_counts: float, transmit_pattern, receive_pattern,
+               receive_reference_m, transmit_reference_m, gain_counts: float, transmit_pattern,
+               receive_pattern,
                noise_power_counts2: float = 0.0, floor_db: float = -60.0,
                sound_speed_m_s: float) -> LabelCube:
     """The label cube of one image group.
@@ -119,15 +123,18 @@ def label_cube(*, time_s, beam_angle_rad, phase_center_m, geometry: SubarrayGeom
     arrivals : dict of str to ndarray
         The arrivals table's columns without the ``arrival_`` prefix (``ping_index``,
         ``target_id``, ``sequence``, ``delay``, ``amplitude_r``, ``amplitude_i``,
-        ``departure_azimuth``, ``departure_elevation``, ``azimuth``, ``elevation``), each (A,).
+        ``departure_azimuth``, ``departure_elevation``, ``azimuth``, ``elevation``,
+        ``transmit_range``, ``receive_range``), each (A,).
     ping_index : ndarray of int, shape (n_pings,)
         The image's pings (the arrivals' ``ping_index`` values).
-    receive_reference_m : ndarray, shape (3,)
-        Where the arrivals' delays end (the table's ``receive_reference_m``).
+    receive_reference_m, transmit_reference_m : ndarray, shape (3,)
+        Where the arrivals' receive legs end and transmit legs start (the table's attributes).
     gain_counts : float
         G: counts at one element per unit amplitude on the transmitter's axis.
-    transmit_pattern, receive_pattern : callable
-        |E_t(û)| and |D(û)| for unit directions (n, 3) (``BeamPattern.transmit``/``receive``).
+    transmit_pattern : callable
+        |E_t(P)| at points (n, 3) (``BeamPattern.transmit_at``: the near field exactly).
+    receive_pattern : callable
+        |D(û)| for unit directions (n, 3) (``BeamPattern.receive``).
     noise_power_counts2 : float
         Expected noise power of an image cell (counts²; 0 without noise).
     floor_db : float
@@ -156,7 +163,12 @@ def label_cube(*, time_s, beam_angle_rad, phase_center_m, geometry: SubarrayGeom
     # delay to this group's phase centre: the plane wave reaches it earlier by û·(p_c − R)/c
     offset = (np.asarray(phase_center_m, float) - np.asarray(receive_reference_m, float))
     tau = np.asarray(arrivals["delay"], float) - (u_arr @ offset) / sound_speed_m_s
-    peak = gain_counts * amp * transmit_pattern(u_dep) * receive_pattern(u_arr)
+    # the legs' ends: the transmitter's field at the (image) scatterer, exactly (near field)
+    r1 = np.asarray(arrivals["transmit_range"], float)
+    r2 = np.asarray(arrivals["receive_range"], float)
+    p_tx = np.asarray(transmit_reference_m, float) + r1[:, None] * u_dep
+    p_rx = np.asarray(receive_reference_m, float) + r2[:, None] * u_arr
+    peak = gain_counts * amp * transmit_pattern(p_tx) * receive_pattern(u_arr)
     # the array factor of every beam towards every arrival (the image's own weights)
     k = 2 * np.pi / wavelength_m
     x = geometry.positions_m - geometry.center_m
@@ -177,7 +189,11 @@ def label_cube(*, time_s, beam_angle_rad, phase_center_m, geometry: SubarrayGeom
         for chunk in np.array_split(sel, max(1, sel.size // 4096)):
             if chunk.size == 0:
                 continue
-            ph = np.exp(1j * k * (u_arr[chunk] @ x.T))                     # (a, n_el)
+            # each element's phase from the (image) source at its exact distance, re the
+            # phase centre's: a plane wave far away, a curved front near the array
+            dist = np.linalg.norm(p_rx[chunk, None, :] - geometry.positions_m[None, :, :], axis=2)
+            ref = np.linalg.norm(p_rx[chunk] - geometry.center_m, axis=1)
+            ph = np.exp(-1j * k * (dist - ref[:, None])) * (ref[:, None] / dist)   # (a, n_el)
             amp_b = peak[chunk, None] * np.abs((ph * geometry.weights) @ steer) / geometry.weights.sum()
             first = np.searchsorted(t_rows, tau[chunk] + lo_t, "left")
             last = np.minimum(np.searchsorted(t_rows, tau[chunk] + hi_t, "right"), n_r)
@@ -278,7 +294,8 @@ def labels_dataset(tree, images, record, settings):
             phase_center_m=images.phase_centers_m[g], geometry=geo,
             wavelength_m=images.wavelength_m, rfilter=rf, arrivals=cols,
             ping_index=record.ping_index, receive_reference_m=np.asarray(arr.attrs["receive_reference_m"], float),
-            gain_counts=gain, transmit_pattern=pattern.transmit, receive_pattern=pattern.receive,
+            transmit_reference_m=np.asarray(arr.attrs["transmit_reference_m"], float),
+            gain_counts=gain, transmit_pattern=pattern.transmit_at, receive_pattern=pattern.receive,
             noise_power_counts2=2 * sigma ** 2 * images.noise_power_gain,
             sound_speed_m_s=record.sound_speed_m_s))
     dims = ("ping_time", "image_group", "image_range", "beam")
