@@ -17,7 +17,9 @@ without it), D the receive element pattern (1 on axis), B_b the beam's response 
 spherical front from P_rx = R + r2 û_arr (the image's own spatial window, 1 on its axis: the
 images are calibrated to the echo amplitude at one element),
 χ the compressed pulse (the image's own range filter, 1 at its peak), t_r the row's two-way
-delay and τ_a the arrival's delay to the image group's phase centre. Receiver noise adds
+delay and τ_a the arrival's delay to the image group's phase centre (a Doppler-shifted
+arrival's χ is the shifted pulse's through the same filter: an LFM's range–Doppler coupling
+moves its peak). Receiver noise adds
 2σ² × the image's noise power gain to every cell. Arrivals are summed in power (their phases
 are not modelled: the fraction is the share of the expected energy).
 
@@ -71,17 +73,38 @@ class LabelCube:
     expected_power: np.ndarray
 
 
-def range_response(rfilter: RangeFilter, upsample: int = 32):
-    """|χ(t)| of the compressed pulse on a fine grid: (t in s, shape (m,); |χ|, shape (m,)),
-    1 at t = 0 (the images' calibration)."""
+def range_response(rfilter: RangeFilter, upsample: int = 16, *, replica=None,
+                   doppler_hz: float = 0.0):
+    """|χ(t)| of the compressed pulse on a fine grid: (t in s, shape (m,); |χ|, shape (m,)), 1 at
+    t = 0 without Doppler (the images' calibration).
+
+    With ``doppler_hz`` ≠ 0 (and the ``replica``, shape (M,)) the echo is the replica shifted in
+    frequency, u(t) e^{j2π f_d t}, through the same filter: an LFM's peak moves by f_d T/B
+    (range–Doppler coupling) and drops a little; still re the unshifted peak."""
     n = rfilter.nfft
-    big = np.zeros(n * upsample, complex)
+    if doppler_hz and replica is not None:
+        rep = np.asarray(replica, complex)
+        shifted = rep * np.exp(2j * np.pi * doppler_hz * np.arange(rep.size) / rfilter.rate_hz)
+        spec = np.fft.fft(shifted, n) * rfilter.spectrum
+        unshifted = np.fft.fft(rep, n) * rfilter.spectrum
+    else:
+        spec = unshifted = rfilter.response
     h = n // 2
-    big[:h], big[n * upsample - (n - h):] = rfilter.response[:h], rfilter.response[h:]
-    chi = np.fft.fftshift(np.fft.ifft(big)) * upsample
+
+    def fine(sp):
+        big = np.zeros(n * upsample, complex)
+        big[:h], big[n * upsample - (n - h):] = sp[:h], sp[h:]
+        return np.abs(np.fft.fftshift(np.fft.ifft(big)))
+
+    mag = fine(spec)
+    norm = mag if spec is unshifted else fine(unshifted)
     t = (np.arange(n * upsample) - n * upsample // 2) / (rfilter.rate_hz * upsample)
-    mag = np.abs(chi)
-    return t, mag / max(float(mag[n * upsample // 2]), 1e-300)
+    return t, mag / max(float(norm[n * upsample // 2]), 1e-300)
+
+
+#: arrivals' Doppler shifts are taken on this grid for their range responses (Hz): 5 Hz moves an
+#: ABACUS LFM's peak by 1.3 mm
+DOPPLER_GRID_HZ = 5.0
 
 
 def _unit(az, el):
@@ -100,10 +123,45 @@ def _classify(seq: np.ndarray) -> np.ndarray:
     return out
 
 
+def _accumulate(chunk, p_rx, peak, tau, geometry, steer, k, t_rows, t_chi, chi, lo_t, hi_t,
+                total, flat_best, flat_arrival):
+    """Add the arrivals ``chunk`` (sorted by delay) to one ping's cells: their energies to
+    ``total`` (n_range, n_beams), and each cell's strongest so far to ``flat_best`` and
+    ``flat_arrival`` (flat views)."""
+    n_r, n_b = total.shape
+    # each element's phase from the (image) source at its exact distance, re the phase
+    # centre's: a plane wave far away, a curved front near the array
+    dist = np.linalg.norm(p_rx[chunk, None, :] - geometry.positions_m[None, :, :], axis=2)
+    ref = np.linalg.norm(p_rx[chunk] - geometry.center_m, axis=1)
+    ph = np.exp(-1j * k * (dist - ref[:, None])) * (ref[:, None] / dist)          # (a, n_el)
+    amp_b = peak[chunk, None] * np.abs((ph * geometry.weights) @ steer) / geometry.weights.sum()
+    first = np.searchsorted(t_rows, tau[chunk] + lo_t, "left")
+    last = np.minimum(np.searchsorted(t_rows, tau[chunk] + hi_t, "right"), n_r)
+    for w in range(int(np.max(last - first))):
+        r = first + w
+        idx = np.flatnonzero(r < last)
+        if idx.size == 0:
+            continue
+        rr = r[idx]
+        g = np.interp(t_rows[rr] - tau[chunk[idx]], t_chi, chi, left=0.0, right=0.0)
+        pw = (amp_b[idx] * g[:, None]) ** 2                                      # (a', b)
+        starts = np.flatnonzero(np.r_[True, rr[1:] != rr[:-1]])
+        rows_u = rr[starts]
+        total[rows_u] += np.add.reduceat(pw, starts, axis=0)
+        top = np.maximum.reduceat(pw, starts, axis=0)                            # (runs, b)
+        run = np.repeat(np.arange(starts.size), np.diff(np.r_[starts, idx.size]))
+        pos = np.where(pw == top[run], np.arange(idx.size)[:, None], idx.size)
+        who = chunk[idx][np.minimum.reduceat(pos, starts, axis=0)]               # (runs, b)
+        cells = rows_u[:, None] * n_b + np.arange(n_b)
+        better = top > flat_best[cells]
+        flat_best[cells[better]] = top[better]
+        flat_arrival[cells[better]] = who[better]
+
+
 def label_cube(*, time_s, beam_angle_rad, phase_center_m, geometry: SubarrayGeometry,
                wavelength_m: float, rfilter: RangeFilter, arrivals: dict, ping_index,
                receive_reference_m, transmit_reference_m, gain_counts: float, transmit_pattern,
-               receive_pattern,
+               receive_pattern, replica=None,
                noise_power_counts2: float = 0.0, floor_db: float = -60.0,
                sound_speed_m_s: float) -> LabelCube:
     """The label cube of one image group.
@@ -120,6 +178,9 @@ def label_cube(*, time_s, beam_angle_rad, phase_center_m, geometry: SubarrayGeom
     wavelength_m : float
     rfilter : RangeFilter
         The image's range filter.
+    replica : ndarray, shape (M,), optional
+        The transmitted pulse: with it, each arrival's ``doppler`` (Hz) shifts and shapes its
+        range response (an LFM's range–Doppler coupling); without, Doppler is ignored.
     arrivals : dict of str to ndarray
         The arrivals table's columns without the ``arrival_`` prefix (``ping_index``,
         ``target_id``, ``sequence``, ``delay``, ``amplitude_r``, ``amplitude_i``,
@@ -173,50 +234,26 @@ def label_cube(*, time_s, beam_angle_rad, phase_center_m, geometry: SubarrayGeom
     k = 2 * np.pi / wavelength_m
     x = geometry.positions_m - geometry.center_m
     u_beam = np.stack([np.sin(theta), np.zeros_like(theta), np.cos(theta)], -1)
-    t_chi, chi = range_response(rfilter)
-    support = t_chi[chi >= 10 ** (floor_db / 20)]
-    lo_t, hi_t = float(support.min()), float(support.max())
     ping_of = np.asarray(arrivals["ping_index"], np.int64)
     steer = np.exp(-1j * k * (x @ u_beam.T))                                # (n_el, b)
-    for pi, p in enumerate(pings):
-        # this ping's arrivals that reach the image, in order of delay: for a given row offset
-        # the rows they land on are then sorted, and the arrivals sharing a row are a run
-        sel = np.flatnonzero((ping_of == p) & (peak > 0) & (tau + hi_t >= t_rows[0])
-                             & (tau + lo_t <= t_rows[-1]))
-        sel = sel[np.argsort(tau[sel], kind="stable")]
-        flat_best = best[pi].reshape(-1)
-        flat_arrival = arrival[pi].reshape(-1)
-        for chunk in np.array_split(sel, max(1, sel.size // 4096)):
-            if chunk.size == 0:
-                continue
-            # each element's phase from the (image) source at its exact distance, re the
-            # phase centre's: a plane wave far away, a curved front near the array
-            dist = np.linalg.norm(p_rx[chunk, None, :] - geometry.positions_m[None, :, :], axis=2)
-            ref = np.linalg.norm(p_rx[chunk] - geometry.center_m, axis=1)
-            ph = np.exp(-1j * k * (dist - ref[:, None])) * (ref[:, None] / dist)   # (a, n_el)
-            amp_b = peak[chunk, None] * np.abs((ph * geometry.weights) @ steer) / geometry.weights.sum()
-            first = np.searchsorted(t_rows, tau[chunk] + lo_t, "left")
-            last = np.minimum(np.searchsorted(t_rows, tau[chunk] + hi_t, "right"), n_r)
-            for w in range(int(np.max(last - first))):
-                r = first + w
-                ok = r < last
-                if not ok.any():
-                    continue
-                idx = np.flatnonzero(ok)
-                rr = r[idx]
-                g = np.interp(t_rows[rr] - tau[chunk[idx]], t_chi, chi, left=0.0, right=0.0)
-                pw = (amp_b[idx] * g[:, None]) ** 2                          # (a', b)
-                starts = np.flatnonzero(np.r_[True, rr[1:] != rr[:-1]])
-                rows_u = rr[starts]
-                total[pi, rows_u] += np.add.reduceat(pw, starts, axis=0)
-                top = np.maximum.reduceat(pw, starts, axis=0)                # (runs, b)
-                run = np.repeat(np.arange(starts.size), np.diff(np.r_[starts, idx.size]))
-                pos = np.where(pw == top[run], np.arange(idx.size)[:, None], idx.size)
-                who = chunk[idx][np.minimum.reduceat(pos, starts, axis=0)]   # (runs, b)
-                cells = rows_u[:, None] * n_b + np.arange(n_b)
-                better = top > flat_best[cells]
-                flat_best[cells[better]] = top[better]
-                flat_arrival[cells[better]] = who[better]
+    doppler = np.asarray(arrivals.get("doppler", np.zeros(tau.size)), float)
+    d_bin = np.round(doppler / DOPPLER_GRID_HZ).astype(np.int64) if replica is not None \
+        else np.zeros(tau.size, np.int64)
+    for b_hz in np.unique(d_bin):
+        t_chi, chi = range_response(rfilter, replica=replica, doppler_hz=float(b_hz) * DOPPLER_GRID_HZ)
+        support = t_chi[chi >= 10 ** (floor_db / 20)]
+        lo_t, hi_t = float(support.min()), float(support.max())
+        for pi, p in enumerate(pings):
+            # this ping's arrivals that reach the image, in order of delay: for a given row
+            # offset the rows they land on are then sorted, and those sharing a row are a run
+            sel = np.flatnonzero((ping_of == p) & (d_bin == b_hz) & (peak > 0)
+                                 & (tau + hi_t >= t_rows[0]) & (tau + lo_t <= t_rows[-1]))
+            sel = sel[np.argsort(tau[sel], kind="stable")]
+            for chunk in np.array_split(sel, max(1, sel.size // 4096)):
+                if chunk.size:
+                    _accumulate(chunk, p_rx, peak, tau, geometry, steer, k, t_rows, t_chi, chi,
+                                lo_t, hi_t, total[pi], best[pi].reshape(-1),
+                                arrival[pi].reshape(-1))
     noise = float(noise_power_counts2)
     power = total + noise
     noisy = noise >= best
@@ -296,6 +333,7 @@ def labels_dataset(tree, images, record, settings):
             ping_index=record.ping_index, receive_reference_m=np.asarray(arr.attrs["receive_reference_m"], float),
             transmit_reference_m=np.asarray(arr.attrs["transmit_reference_m"], float),
             gain_counts=gain, transmit_pattern=pattern.transmit_at, receive_pattern=pattern.receive,
+            replica=record.replica,
             noise_power_counts2=2 * sigma ** 2 * images.noise_power_gain,
             sound_speed_m_s=record.sound_speed_m_s))
     dims = ("ping_time", "image_group", "image_range", "beam")
