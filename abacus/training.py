@@ -1,6 +1,6 @@
 """Training data: randomised scenes, their images and label cubes, in files NumPy reads.
 
-``abacus dataset --scenes N --seed S OUT`` (docs/training.md) draws N scenes from one seeded
+``abacus dataset -o OUT --scenes N --seed S`` (docs/training.md) draws N scenes from one seeded
 distribution — a horizontal ABACUS 3 m under the sea looking at a fish school, the school's
 size, packing, range and depth, the sea state (flat, a swell or a wind sea) and the floor's
 depth drawn for each — simulates each with its per-arrival ground truth, images it and labels

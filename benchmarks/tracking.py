@@ -123,7 +123,7 @@ def tracking_section() -> str:
         "= track TS (10 log10 of the mean σ_bs of its compensated detections) − the fish's, both "
         "as mean ± standard deviation over the tracks that follow a fish.\n\n"
         "![tracks of the first run](figures/school_tracks_tracks.png)\n\n"
-        "![TS along the counted tracks](figures/school_tracks_track_ts.png)\n\n"
+        "![TS of the counted tracks: per-track mean and spread, histogram](figures/school_tracks_track_ts.png)\n\n"
         "**Decision rules, swept one at a time** (totals over the same runs; the rules are not "
         "approximations of a reference, so they live here rather than in docs/accuracy.md):\n\n"
         + table(["setting", "tracks counted", "true passages", "count error (%)", "mean IDF1",

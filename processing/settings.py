@@ -15,7 +15,7 @@ from processing.base.config import (AngleDeg, AngleRangeDeg, ConfigModel, Count,
                      Real, read_yaml, validate_file)
 
 __all__ = ["ImageSettings", "NoiseSettings", "CfarSettings", "DetectSettings", "CountSettings", "TrackSettings",
-           "ProcessingSettings", "load_settings", "WINDOWS"]
+           "SingleTargetSettings", "SONAR_NETCDF4_PARAMETERS", "ProcessingSettings", "load_settings", "WINDOWS"]
 
 #: windows accepted by name (scipy.signal.windows), range and spatial
 WINDOWS = ("rectangular", "hamming", "hann", "taylor", "blackman")
@@ -191,6 +191,65 @@ class TrackSettings(ConfigModel):
         return self
 
 
+class SingleTargetSettings(ConfigModel):
+    """Single-target detection by the echosounder criteria (Soule et al. 1995, 1997; Ona 1999;
+    Simrad EK60/EK80, Echoview): each field is a detection parameter of the SONAR-netCDF4 2.0
+    SingleTarget group (``param_<name>`` there; :data:`SONAR_NETCDF4_PARAMETERS`), with its
+    meaning. Echo lengths are measured at the −6 dB points of the matched-filter envelope and
+    normalised by the nominal (compressed) pulse's, the same measure on the range filter's own
+    point response (processing/backscatter/echo_criteria.py, docs/single_targets.md)."""
+
+    ts_threshold_db: Real = Field(-50.0, ge=-200, le=50)
+    """param_TS_threshold: minimum compensated TS (dB re 1 m²) of a single target."""
+    gain_compensation_db: NonNegativeReal = Field(6.0, le=60)
+    """param_gain_compensation: maximum one-way beam compensation (dB): half the two-way
+    compensation at the located angles."""
+    minimum_echo_duration: PositiveReal = Field(0.9, le=100)
+    """param_minimum_echo_duration: minimum −6 dB echo length relative to the nominal pulse's.
+    One echo of the compressed pulse has the nominal length within ±3 % at SNR ≥ 35 dB
+    (docs/single_targets.md); EK60's CW defaults (0.8–2.5) allow for a CW envelope that a
+    matched filter with the known replica does not have."""
+    maximum_echo_duration: PositiveReal = Field(1.1, le=100)
+    """param_maximum_echo_duration: maximum −6 dB echo length relative to the nominal pulse's."""
+    maximum_phase_deviation: NonNegativeReal | None = Field(3.0, alias="maximum_phase_deviation_deg",
+                                                           le=180)
+    """param_maximum_phase_deviation: maximum standard deviation (deg, electrical) of the phase
+    over the samples within the echo's −6 dB points, the larger of the two planes' (elevation:
+    ψ_AB; azimuth: the split-aperture phase of the beam-domain peak); null: not applied. Noise
+    alone gives ≈ 0.5° at SNR 50 dB and up to ≈ 3° at 38 dB: raise it for weaker echoes."""
+    minimum_echo_spacing: NonNegativeReal = Field(1.0, le=100)
+    """param_minimum_echo_spacing: another echo in the same beam (within one azimuth
+    resolution) closer in range than this many nominal pulse lengths rejects both."""
+    echo_length_level_db: PositiveReal = Field(6.0, le=30)
+    """Level below the peak (dB) at which the echo length is measured (Echoview's pulse length
+    determination level); the SONAR-netCDF4 convention and the issue's criteria use 6 dB."""
+    sidelobe_db: NonNegativeReal = Field(20.0, le=100)
+    """A detection within 2.5 range cells of one this much stronger (dB) is its range or azimuth
+    sidelobe (or grating ghost), not a target (rule ``sidelobe``); 0 turns the rule off."""
+    near_field: bool = True
+    """Compensate TS for the transmitter's and the receive beam's near field at the located
+    position (processing/backscatter/target_strength.py); false: the far-field pattern only,
+    as echosounders compensate (TS then reads ≈ 53/r² dB low on axis: 0.1 dB at 23 m)."""
+
+    @model_validator(mode="after")
+    def _durations(self):
+        if not self.minimum_echo_duration < self.maximum_echo_duration:
+            raise ValueError(f"minimum_echo_duration ({self.minimum_echo_duration}) must be less "
+                             f"than maximum_echo_duration ({self.maximum_echo_duration})")
+        return self
+
+
+#: SingleTargetSettings field -> SONAR-netCDF4 2.0 SingleTarget variable (and its unit)
+SONAR_NETCDF4_PARAMETERS = {
+    "ts_threshold_db": ("param_TS_threshold", "dB"),
+    "gain_compensation_db": ("param_gain_compensation", "dB"),
+    "minimum_echo_duration": ("param_minimum_echo_duration", "1"),
+    "maximum_echo_duration": ("param_maximum_echo_duration", "1"),
+    "maximum_phase_deviation": ("param_maximum_phase_deviation", "arc_degree"),
+    "minimum_echo_spacing": ("param_minimum_echo_spacing", "1"),
+}
+
+
 class ProcessingSettings(ConfigModel):
     """All processing settings."""
 
@@ -198,6 +257,7 @@ class ProcessingSettings(ConfigModel):
     detect: DetectSettings = DetectSettings()
     count: CountSettings = CountSettings()
     track: TrackSettings = TrackSettings()
+    single_target: SingleTargetSettings = SingleTargetSettings()
 
 
 def load_settings(path: str | Path) -> ProcessingSettings:

@@ -14,7 +14,7 @@ from .conftest import ROOT
 def test_recipe_runs_and_the_loading_snippet_works(tmp_path, monkeypatch, capsys):
     from abacus.cli.app import main
     monkeypatch.chdir(tmp_path)
-    assert main(["dataset", "training", "--scenes", "2", "--seed", "1"]) == 0
+    assert main(["dataset", "-o", "training", "--scenes", "2", "--seed", "1"]) == 0
     names = sorted(p.name for p in (tmp_path / "training").iterdir())
     assert names == ["index.csv", "sample_00000.npz", "sample_00000.yaml", "sample_00001.npz",
                      "sample_00001.yaml"]

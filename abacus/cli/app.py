@@ -19,7 +19,7 @@ from pathlib import Path
 __all__ = ["main", "build_parser", "COMMANDS"]
 
 #: sub-commands in the order ``abacus --help`` lists them
-COMMANDS = ("run", "scene", "beams", "simulate", "image", "count", "track", "sv", "convert", "experiment",
+COMMANDS = ("run", "scene", "beams", "simulate", "image", "count", "targets", "track", "sv", "convert", "experiment",
             "dataset", "view")
 
 

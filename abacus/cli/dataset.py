@@ -14,7 +14,7 @@ def add_parser(sub):
                                    "with its arrivals, image it and label every cell; write "
                                    "sample_NNNNN.npz (+ its scene .yaml) and index.csv into OUT "
                                    "(docs/training.md).")
-    d.add_argument("output", metavar="OUT", help="a new folder")
+    d.add_argument("-o", "--output", metavar="OUT", required=True, help="a new folder")
     d.add_argument("--scenes", type=int, required=True, help="number of scenes to draw")
     d.add_argument("--seed", type=int, default=0, help="seed of the distribution (default 0)")
     d.add_argument("--pings", type=int, default=1, help="pings per scene (default 1)")
@@ -31,7 +31,7 @@ def command(args) -> int:
         raise UsageError(f"--pings must be an integer in [1, 10000], got {args.pings}")
     if not 0 <= args.seed <= SEED_MAX:
         raise UsageError(f"--seed must be an integer in [0, {SEED_MAX}], got {args.seed}")
-    (out,) = check_outputs(args, [("OUT", args.output, True)])
+    (out,) = check_outputs(args, [("-o", args.output, True)])
     with staged_set() as outputs:
         tmp = outputs.path(out)
         tmp.mkdir()

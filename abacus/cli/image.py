@@ -44,7 +44,7 @@ def command(args) -> int:
             from processing.records import figure_images
             tmp = outputs.path(plots)
             tmp.mkdir()
-            image_figures(figure_images(out_tree, [args.ping]), tmp, ping=args.ping)
+            image_figures(figure_images(out_tree, [args.ping]), tmp, ping=args.ping, tree=out_tree)
             if args.labels:
                 from abacus.figures.labels import draw_label_figure
                 from processing.base.contract import LABELS_GROUP
