@@ -164,3 +164,18 @@ def test_doppler_moves_the_expected_peak_with_the_image():
     arr = out["Vendor_specific/Arrivals"].ds
     own = arr["arrival_target_id"].values == 1
     assert abs(im.range_m[r] - 750.0 * arr["arrival_delay"].values[own][0]) > 0.05
+
+
+def test_builtin_ghost_scene_outside_the_scan():
+    """scenes/ghost_outside_scan.yaml: a target at 15°, outside the FFT beams' ±7°, folds into
+    the image near 1° through a grating lobe; the image's brightest cell is labelled as that
+    target's grating-lobe ghost."""
+    tree = acoustics.simulate("ghost_outside_scan", pings=1, arrivals=True)
+    out = processing.image(tree, labels=True)
+    im = processing.images_of(out)
+    power = np.abs(im.image[0, 0]) ** 2
+    r, b = np.unravel_index(np.argmax(power), power.shape)
+    lab = out["Processing/Labels"].ds
+    assert abs(np.degrees(im.beam_angle_rad[b])) < 2.0
+    assert CLASSES[int(lab["label_class"].values[0, 0, r, b])] == "grating_lobe_ghost"
+    assert lab["label_id"].values[0, 0, r, b] == 0
