@@ -24,10 +24,14 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["SEA_STATES", "draw_scene", "write_sample", "make_dataset"]
+__all__ = ["SEA_STATES", "FLOORS", "draw_scene", "write_sample", "make_dataset"]
 
 #: the sea states drawn, with equal probability
 SEA_STATES = ("flat", "swell", "wind_sea")
+#: floor materials drawn, with equal probability: (density kg/m³, sound speed m/s) of a fluid
+#: half-space, c = 1500 m/s x the ratio of Jensen et al., Computational Ocean Acoustics (2011), Table 1.3
+FLOORS = {"silt": (1700.0, 1575.0), "sand": (1900.0, 1650.0), "gravel": (2000.0, 1800.0),
+          "limestone": (2400.0, 3000.0)}
 #: the image every sample is cut to (m)
 IMAGE_RANGE_M = (8.0, 36.0)
 
@@ -49,6 +53,8 @@ def draw_scene(seed: int, index: int) -> tuple[str, dict]:
     count = max(1, min(count, int(0.2 * volume / (np.pi / 6 * nn ** 3))))
     sea = SEA_STATES[int(rng.integers(len(SEA_STATES)))]
     floor = float(rng.uniform(12.0, 30.0))
+    material = list(FLOORS)[int(rng.integers(len(FLOORS)))]
+    rho_f, c_f = FLOORS[material]
     x, y = rng_m * np.cos(az), rng_m * np.sin(az)
     if sea == "flat":
         mesh = "{shape: plane, center_m: [22.0, 0.0, 0.0], normal: [0.0, 0.0, 1.0], size_m: [60.0, 30.0]}"
@@ -88,6 +94,7 @@ boundaries:
   - name: sea floor
     role: floor
     mesh: {{shape: plane, center_m: [22.0, 0.0, {floor:.3f}], normal: [0.0, 0.0, -1.0], size_m: [60.0, 30.0]}}
+    reflection: {{model: rayleigh, density_kg_m3: {rho_f}, sound_speed_m_s: {c_f}}}
     scattering: null
 effects: {{max_bounces: 1, arrivals: {{enabled: true, floor_db: -60.0}}}}
 processing:
@@ -96,7 +103,7 @@ processing:
     params = {"sample": index, "school_count": count, "school_density_per_m3": count / volume,
               "nearest_neighbour_m": nn,
               "school_range_m": rng_m, "school_azimuth_rad": az, "school_depth_m": depth,
-              "sea": sea, "floor_depth_m": floor, **extra}
+              "sea": sea, "floor_depth_m": floor, "floor": material, **extra}
     return text, params
 
 

@@ -37,3 +37,8 @@ def test_scenes_are_a_function_of_seed_and_index():
     assert draw_scene(5, 3)[0] != draw_scene(5, 4)[0] and draw_scene(5, 3)[0] != draw_scene(6, 3)[0]
     seas = {draw_scene(11, i)[1]["sea"] for i in range(30)}
     assert seas == {"flat", "swell", "wind_sea"}
+
+
+def test_floors_are_drawn():
+    floors = {draw_scene(11, i)[1]["floor"] for i in range(40)}
+    assert floors == {"silt", "sand", "gravel", "limestone"}
