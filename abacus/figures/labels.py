@@ -78,6 +78,7 @@ def draw_label_figure(image, label_class, label_id, label_fraction, range_m, bea
     for ax in axes:
         ax.set_xlabel("beam azimuth θ (deg)")
         ax.set_ylabel("range r (m)")
+        ax.invert_yaxis()           # range grows downward, as on an echogram (the run's figures)
     out = save(fig, Path(path))
     plt.close(fig)
     return out
