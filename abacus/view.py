@@ -249,7 +249,7 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
                 plotter.add_points(t.position_world_m[sel], color=col,
                                    point_size=14 if col == "red" else 10,
                                    render_points_as_spheres=True, label=lab)
-    if rs is not None and len(t) and scene.effects.multipath_order > 0 and rs.curved:
+    if rs is not None and len(t) and scene.effects.max_bounces > 0 and rs.curved:
         _draw_bounces(plotter, rs, t, view, mount if view is not None else pose)
     _draw_motion(plotter, scene, setup, t)
     # a vertical fan (down-looking sonar) is seen square-on from aft of it and a little above; a

@@ -113,9 +113,9 @@ def register(knob):
                 "comes from the facet). Errors as above.\n\n"
                 + table(["Newton steps", "paths", "delay error (ns)", "level error (dB)", "missed",
                          "extra", "time (ms)"], rows)
-                + "\n\nBounce order: on planar boundaries `effects.multipath_order` is the "
-                  "section above (image sources); on a curved boundary every order ≥ 1 is one "
-                  "bounce per leg (two per path: Tx→surface→target→surface→Rx).")
+                + "\n\nBounces: `effects.max_bounces` (the section above) counts planar and "
+                  "curved bounces alike; a leg meets a curved boundary at most once, alone or "
+                  "between planar bounces (Tx→surface→floor→target).")
 
     @knob
     def specular_cost():

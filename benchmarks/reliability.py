@@ -269,6 +269,7 @@ def probes() -> list[Probe]:
         "temperature 90 °C": "medium: {temperature_c: 90}\n", "salinity negative": "medium: {salinity_psu: -3}\n",
         "pH 14": "medium: {ph: 14}\n", "kernel length 1": "effects: {kernel_length: 1}\n",
         "oversampling 100": "effects: {oversampling: 100}\n", "multipath order 9": "effects: {multipath_order: 9}\n",
+        "max bounces 9": "effects: {max_bounces: 9}\n",
         "ADC bits 64": "sampling: {adc: {bits: 64}}\n", "bad start time": "pings: {start_time: yesterday}\n",
         "start time in 3000": "pings: {start_time: '3000-01-01T00:00:00'}\n",
         "bandwidth over the rate": "sampling: {rate_hz: 10000}\n",

@@ -88,7 +88,7 @@ def _record(tree):
     return read_record(tree, source=source_of(tree))
 
 
-def image(tree: xr.DataTree, settings=None, *, storage: str = "full") -> xr.DataTree:
+def image(tree: xr.DataTree, settings=None, *, storage: str = "full", labels: bool = False) -> xr.DataTree:
     """Images of every ping (thesis chapter 4), stored in /Processing.
 
     Parameters
@@ -100,6 +100,10 @@ def image(tree: xr.DataTree, settings=None, *, storage: str = "full") -> xr.Data
         Every interpolated row (default), every U-th row (the data's own range sampling: U
         times smaller), or only the attributes. The interferometric phase and elevation are
         derived from the two images (:func:`images_of`).
+    labels : bool
+        Also write /Processing/Labels: per cell the dominant contributor, its share of the
+        energy and its class (processing/imaging/labels.py), from the dataset's
+        /Vendor_specific/Arrivals (``abacus simulate --arrivals``).
 
     Returns
     -------
@@ -129,6 +133,10 @@ def image(tree: xr.DataTree, settings=None, *, storage: str = "full") -> xr.Data
     out = tree.copy()
     ping_time = tree[ELEMENT_GROUP].ds["ping_time"].values
     out[PROCESSING_GROUP] = xr.DataTree(images_dataset(im, ping_time, st, storage=storage))
+    if labels:
+        from processing.base.contract import LABELS_GROUP
+        from processing.imaging.labels import labels_dataset
+        out[LABELS_GROUP] = xr.DataTree(labels_dataset(tree, im, rec, st))
     return out
 
 

@@ -13,7 +13,7 @@ import scipy.io
 
 import acoustics
 from processing.base import contract
-from processing.base.contract import (ELEMENT_GROUP, ENVIRONMENT_GROUP, GROUPS, PLATFORM_GROUP, ROOT_GROUP,
+from processing.base.contract import (ARRIVALS_GROUP, ELEMENT_GROUP, ENVIRONMENT_GROUP, GROUPS, PLATFORM_GROUP, ROOT_GROUP,
                                       SONAR_GROUP, TRUTH_GROUP, group_spec, node_path)
 from processing.base.convert import from_legacy, read_mat
 from processing.base.dataset import TRUTH_GROUP as TRUTH_GROUP_OF_DATASET
@@ -75,7 +75,8 @@ def test_a_simulation_writes_only_what_the_table_says_with_its_units(simulated, 
     # and as the file holds it (strings and times come back through NetCDF)
     write_tree(simulated, tmp_path / "s.nc")
     _assert_follows_the_table(open_tree(tmp_path / "s.nc"))
-    assert {node_path(n.path) for n in simulated.subtree} == set(GROUPS)
+    # every group but the opt-in per-arrival truth (tests/test_arrivals.py writes that one)
+    assert {node_path(n.path) for n in simulated.subtree} == set(GROUPS) - {node_path(ARRIVALS_GROUP)}
 
 
 def test_a_moving_quantising_simulation_follows_the_table(tmp_path):

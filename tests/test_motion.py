@@ -260,7 +260,7 @@ boundaries:
      size_m: [30.0, 30.0]}, reflection: {model: rayleigh, density_kg_m3: 1900, sound_speed_m_s: 1700},
      scattering: {law: lambert, mu_db: -27}}
   - {name: rock, role: obstacle, mesh: {shape: box, center_m: [0.0, 1.0, 16.0], size_m: [0.8, 0.8, 0.8]}}
-effects: {multipath_order: 1, reverberation: {enabled: true, rays_per_square_degree: 50}}
+effects: {max_bounces: 1, reverberation: {enabled: true, rays_per_square_degree: 50}}
 """
 
 

@@ -272,7 +272,7 @@ boundaries:
   - {name: surface, role: surface, mesh: {shape: plane, center_m: [40, 0, 0], normal: [0, 0, 1], size_m: [200, 60]}}
   - {name: floor, role: floor, mesh: {shape: plane, center_m: [40, 0, 12], normal: [0, 0, -1], size_m: [200, 60]},
      reflection: {model: constant, coefficient: 0.5}, scattering: null}
-effects: {multipath_order: 3}
+effects: {max_bounces: 3}
 """)
     setup = make_setup(scene)
     pose = setup.sonar.pose
@@ -312,7 +312,7 @@ def test_multipath_off_casts_no_multipath_rays():
     scene = load("multipath_surface.yaml")
     on = json.loads(simulate(scene)["Provenance"].ds.attrs["rays_cast_json"])
     assert on.get("multipath", 0) > 0
-    off = scene.model_copy(update={"effects": scene.effects.model_copy(update={"multipath_order": 0})})
+    off = scene.model_copy(update={"effects": scene.effects.model_copy(update={"max_bounces": 0})})
     tree = simulate(off)
     assert "multipath" not in json.loads(tree["Provenance"].ds.attrs["rays_cast_json"])
     assert "multipath" not in list(tree["Provenance"].ds["stage"].values)

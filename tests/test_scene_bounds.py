@@ -39,7 +39,7 @@ def _swell(wave="amplitude_m: 0.5, wavelength_m: 25", extra="", target="[15, 0, 
     return (sonar + f"targets: {{points: [{{frame: world, position_m: {target}}}]}}\n"
             f"boundaries: [{{name: sea, role: surface, mesh: {{shape: swell, center_m: [10, 0], "
             f"size_m: [30, 10], resolution_m: 0.5, waves: [{{{wave}}}]{extra}}}}}]\n"
-            "effects: {multipath_order: 1}\n" + pings)
+            "effects: {max_bounces: 1}\n" + pings)
 
 
 def _floor(mesh):
@@ -126,7 +126,7 @@ REFUSED = {
                                   "effects.reverberation.max_range_m", ("<= 100000",)),
     "floor density 1e-300": (_floor("{shape: plane, center_m: [0, 0, 30]}").replace(
         "mesh:", "reflection: {model: rayleigh, density_kg_m3: 1.0e-300}, mesh:")
-        + "effects: {multipath_order: 1}\n", "boundaries[0].reflection.rayleigh.density_kg_m3", (">= 1",)),
+        + "effects: {max_bounces: 1}\n", "boundaries[0].reflection.rayleigh.density_kg_m3", (">= 1",)),
     "sampling rate 1e-300": ("sampling: {rate_hz: 1.0e-300}\nsignal: {bandwidth_hz: 0}\n" + POINT,
                              "sampling.rate_hz", (">= 100",)),
     "Doppler bin 1e-300": ("effects: {doppler: true, doppler_bin_hz: 1.0e-300}\n" + POINT,

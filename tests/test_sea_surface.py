@@ -211,7 +211,7 @@ boundaries:
     role: surface
     mesh: {{shape: swell, center_m: [12, 0], size_m: [36, 6], resolution_m: {step},
            waves: [{{amplitude_m: {amp}, wavelength_m: {lam}}}]}}
-effects: {{multipath_order: 1, specular: {{exact_surface: {str(exact).lower()}}}}}
+effects: {{max_bounces: 1, specular: {{exact_surface: {str(exact).lower()}}}}}
 pings: {{count: 6, interval_s: 0.7}}
 """)
     setup = make_setup(scene)
@@ -259,7 +259,7 @@ boundaries:
   - name: sea surface
     role: surface
     mesh: {mesh}
-effects: {{multipath_order: 1}}
+effects: {{max_bounces: 1}}
 """
 
 
@@ -500,7 +500,7 @@ def test_a_ping_gives_its_surface_paths_the_doppler_of_the_moving_sea(monkeypatc
     scene = text_scene(_FLAT.format(
         mesh="{shape: swell, center_m: [15, 0], size_m: [40, 20], resolution_m: 0.25, "
              "waves: [{amplitude_m: 0.3, wavelength_m: 12.0}]}").replace(
-        "effects: {multipath_order: 1}", "effects: {multipath_order: 1, doppler: true}"))
+        "effects: {max_bounces: 1}", "effects: {max_bounces: 1, doppler: true}"))
     setup = make_setup(scene)
     seen, paths = {}, []
     real, real_multipath = ping_mod.synthesize, setup.ray_scene.multipath

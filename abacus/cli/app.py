@@ -20,7 +20,7 @@ __all__ = ["main", "build_parser", "COMMANDS"]
 
 #: sub-commands in the order ``abacus --help`` lists them
 COMMANDS = ("run", "scene", "beams", "simulate", "image", "count", "targets", "track", "sv", "convert", "experiment",
-            "view")
+            "dataset", "view")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

@@ -15,6 +15,9 @@ def add_parser(sub):
     i.add_argument("--ping", type=int, default=0, help="ping to plot (index in the file)")
     i.add_argument("--images", choices=["full", "native"], default="full",
                    help="store every interpolated row (default) or the data's own range sampling")
+    i.add_argument("--labels", action="store_true",
+                   help="also write /Processing/Labels: per cell the dominant contributor, its share "
+                        "and class (needs a dataset simulated with --arrivals)")
     add_output_options(i)
     i.set_defaults(func=command)
 
@@ -31,7 +34,7 @@ def command(args) -> int:
     n = tree_pings(tree)
     if not 0 <= args.ping < max(n, 1):
         raise UsageError(f"--ping {args.ping}: the dataset has pings 0..{n - 1} (indices in the file)")
-    out_tree = processing.image(tree, args.settings, storage=args.images)
+    out_tree = processing.image(tree, args.settings, storage=args.images, labels=args.labels)
     # both outputs to temporaries, renamed into place together at the end
     with staged_set() as outputs:
         if out is not None:
@@ -42,6 +45,16 @@ def command(args) -> int:
             tmp = outputs.path(plots)
             tmp.mkdir()
             image_figures(figure_images(out_tree, [args.ping]), tmp, ping=args.ping, tree=out_tree)
+            if args.labels:
+                from abacus.figures.labels import draw_label_figure
+                from processing.base.contract import LABELS_GROUP
+                im = processing.images_of(out_tree)
+                lab = out_tree[LABELS_GROUP].ds
+                draw_label_figure(im.image[args.ping, 0],
+                                  *(lab[k].values[args.ping, 0] for k in
+                                    ("label_class", "label_id", "label_fraction")),
+                                  im.range_m, im.beam_angle_rad, tmp / "labels.png",
+                                  title=f"ping {args.ping}")
     if out is not None:
         print(f"wrote {out}")
     if plots is not None:

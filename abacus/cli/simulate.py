@@ -20,6 +20,9 @@ def add_parser(sub):
     m.add_argument("--format", choices=DATASET_FORMATS,
                    help="netcdf or zarr: SONAR-netCDF4 1.0 (default, from the suffix; what echopype "
                         "opens); sonar-netcdf4-2: SONAR-netCDF4 2.0 (.nc; docs/dataset.md)")
+    m.add_argument("--arrivals", action="store_true",
+                   help="also write every path of every ping, /Vendor_specific/Arrivals "
+                        "(docs/dataset.md, 'Arrivals'; the scene's effects.arrivals.floor_db applies)")
     add_output_options(m)
     m.set_defaults(func=command)
 
@@ -37,12 +40,15 @@ def command(args) -> int:
     pings = ping_list(scene, args.pings)
     check_scene_resources(scene, args, pings=len(pings) if pings else None, process=False, output=out)
     tree = simulate(scene, pings=pings, seed=args.seed,
-                    progress=Progress("simulate"))
+                    progress=Progress("simulate"), arrivals=True if args.arrivals else None)
     with staged_set() as outputs:
         save_tree(tree, outputs.path(out), final=out, fmt=fmt)
     prov = tree["Provenance"].ds
     n_p = tree[ELEMENT_GROUP].sizes["ping_time"]
-    print(f"wrote {out} ({fmt}): {n_p} ping(s); stages: "
+    arrivals = ""
+    if "Arrivals" in tree["Vendor_specific"].children:
+        arrivals = f", {tree['Vendor_specific/Arrivals'].sizes['arrival']} arrival(s)"
+    print(f"wrote {out} ({fmt}): {n_p} ping(s){arrivals}; stages: "
           + ", ".join(f"{s} {t:.2f} s" for s, t in zip(prov["stage"].values, prov["stage_seconds"].values)))
     clipped = tree[ELEMENT_GROUP].ds.get("adc_clipped_samples")
     if clipped is not None and int(clipped.sum()):

@@ -370,10 +370,26 @@ class RayScene:
             out += b[:, 2] * sm.surface.vertical_velocity(own[:, 0], own[:, 1], sm.time_s)
         return out
 
+    def bounce_sequences(self, max_bounces: int) -> list:
+        """Every sequence of reflecting boundaries (mesh indices, in the order a leg meets them)
+        of 1 to ``max_bounces`` bounces: no boundary twice in a row, at most one curved
+        boundary per leg (a curved bounce is found by its specular points between the images of
+        the leg's ends in the planar boundaries around it); shortest first."""
+        planes, curved = sorted(self.planes), self.curved
+        out, frontier = [], [()]
+        for _ in range(max_bounces):
+            frontier = [s + (b,) for s in frontier for b in planes + curved
+                        if (not s or s[-1] != b) and not (b in curved and any(x in curved for x in s))]
+            out += frontier
+        return out
+
     def _legs(self, start, p, order, velocities=None, start_velocity=None):
-        """Every leg from ``start`` to the targets ``p``: direct, plane images up to ``order``
-        bounces, one bounce off each curved boundary; as flat rows (target, point, Π R, bounces,
-        dL/dt), velocities (m/s) in the built frame."""
+        """Every leg from ``start`` to the targets ``p``: direct, and every bounce sequence of
+        :meth:`bounce_sequences` (planar ones by image sources, one with a curved boundary
+        through its specular points); as flat rows (target, point, Π R, bounces, dL/dt,
+        sequence number, facet), velocities (m/s) in the built frame. Sequence number 0 is the
+        direct leg, k ≥ 1 the k-th of :meth:`bounce_sequences`; facet is the curved bounce's
+        facet (−1 without one)."""
         n = p.shape[0]
         v = np.zeros((n, 3)) if velocities is None else velocities
         vs = np.zeros(3) if start_velocity is None else start_velocity
@@ -385,13 +401,13 @@ class RayScene:
             vt = v[idx] if mirror is None else mirror(v[idx])
             return np.einsum("ij,ij->i", u, vt) - u @ vs
 
-        rows = [(np.arange(n), p, np.ones(n, complex), np.zeros(n, int), rate(p, np.arange(n)))]
-        planes = sorted(self.planes)
-        seqs, frontier = [], [()]
-        for _ in range(order if planes else 0):
-            frontier = [s + (b,) for s in frontier for b in planes if not s or s[-1] != b]
-            seqs += frontier
-        for seq in seqs:
+        rows = [(np.arange(n), p, np.ones(n, complex), np.zeros(n, int), rate(p, np.arange(n)),
+                 np.zeros(n, int), np.full(n, -1))]
+        for number, seq in enumerate(self.bounce_sequences(order), start=1):
+            if any(b not in self.planes for b in seq):
+                t, im, c, r, face = self._curved_leg(start, p, seq, velocities, start_velocity)
+                rows.append((t, im, c, np.full(t.size, len(seq)), r, np.full(t.size, number), face))
+                continue
             image, valid, coef = self._unfold(start, p, seq)
             idx = np.flatnonzero(valid)
 
@@ -402,17 +418,89 @@ class RayScene:
                 return vel
 
             rows.append((idx, image[idx], coef[idx], np.full(idx.size, len(seq)),
-                         rate(image[idx], idx, mirror_v)))
-        if self.curved and order >= 1:
-            t, im, c, r = self.specular_legs(start, p, velocities, start_velocity)
-            rows.append((t, im, c, np.ones(t.size, int), r))
+                         rate(image[idx], idx, mirror_v), np.full(idx.size, number),
+                         np.full(idx.size, -1)))
         return tuple(np.concatenate(col) for col in zip(*rows))
 
+    def _mirror_all(self, x, seq):
+        """``x`` (..., 3) mirrored in the planes of ``seq``, first plane first."""
+        for b in seq:
+            x = _mirror(x, self.planes[b])
+        return x
+
+    def _mirror_vectors(self, vel, seq):
+        for b in seq:
+            nrm = self.planes[b][0]
+            vel = vel - 2.0 * (vel @ nrm)[..., None] * nrm
+        return vel
+
+    def _curved_leg(self, start, p, seq, velocities=None, start_velocity=None):
+        """Legs start → seq → target with one curved boundary in ``seq``: the specular points
+        on it between the start's image in the planes before it and the target's image in the
+        planes after it (the planar bounces unfold; the curved mirror's divergence is taken in
+        the unfolded legs), every planar bounce point checked on its mesh and every segment for
+        blockage. Returns (target, image, coefficient, dL/dt, facet) rows as :meth:`_legs`."""
+        from acoustics.paths.specular import specular_points
+        k = next(j for j, b in enumerate(seq) if b not in self.planes)
+        ci, before, after = seq[k], seq[:k], seq[k + 1:]
+        sm, spec = self.meshes[ci], self.specular
+        n = p.shape[0]
+        s_img = self._mirror_all(np.asarray(start, float), before)          # start, seen from X
+        e_img = self._mirror_all(p, tuple(reversed(after)))                  # targets, seen from X
+        exact = None
+        if sm.moving and spec.exact_surface:
+            exact = (lambda x, y, _s=sm.surface, _t=sm.time_s: _s.height(x, y, _t), sm.placement)
+        sp = specular_points(sm.mesh.vertices, sm.mesh.faces, self._normals(ci),
+                             np.broadcast_to(s_img, (n, 3)), e_img,
+                             newton_iterations=spec.newton_iterations,
+                             focusing_limit_db=spec.focusing_limit_db, height_field=exact)
+        empty = (np.zeros(0, int), np.zeros((0, 3)), np.zeros(0, complex), np.zeros(0),
+                 np.zeros(0, int))
+        if not len(sp):
+            return empty
+        if sp.capped.any():
+            self.specular_capped += int(sp.capped.sum())
+            self.caster._count("specular_capped_paths", int(sp.capped.sum()))
+        lift = (2.0 * np.linalg.norm(sp.point_m - sp.mesh_point_m, axis=1)
+                + 10 * self.caster.eps_m + 1e-5 * sp.source_range_m)
+        wet = sp.point_m + lift[:, None] * sp.normal
+        coef = self._reflection(ci, sp.cos_incidence) * sp.divergence
+        ends = p[sp.pair]
+        # start → (planes before) → X: the bounce points on their meshes, nothing in the way
+        if before:
+            x_seen, ok, c1 = self._unfold(np.asarray(start, float), wet, before)
+            coef = coef * c1
+        else:
+            x_seen = sp.point_m
+            ok = ~self.caster.occluded(np.broadcast_to(start, wet.shape), wet, purpose="multipath")
+        # X → (planes after) → target
+        if after:
+            _, ok2, c2 = self._unfold(wet, ends, after)
+            ok &= ok2
+            coef = coef * c2
+        else:
+            ok &= ~self.caster.occluded(wet, ends, purpose="multipath")
+        if not seq[1:] and not before:
+            self.last_specular.append((ci, start, sp, ok))
+        if not ok.any():
+            return empty
+        sel = np.flatnonzero(ok)
+        # the unfolded leg: its length along the direction it leaves the start in
+        d = x_seen[sel] - start
+        u = d / np.maximum(np.linalg.norm(d, axis=1), 1e-300)[:, None]
+        image = start + (sp.source_range_m[sel] + sp.receiver_range_m[sel])[:, None] * u
+        vel = None if velocities is None else self._mirror_vectors(
+            np.asarray(velocities, float), tuple(reversed(after)))
+        v_s = None if start_velocity is None else self._mirror_vectors(
+            np.asarray(start_velocity, float), before)
+        r = self._specular_rate(sm, s_img, e_img, sp, sel, vel, v_s)
+        return sp.pair[sel], image, coef[sel], r, sp.face[sel]
+
     def multipath(self, positions_m, strength, order: int, view: Pose | None = None, *,
-                  velocities_m_s=None, sonar_velocity_m_s=None) -> VirtualScatterers:
-        """Specular paths of point targets: up to ``order`` bounces per leg on planar
-        boundaries (image sources), one bounce per leg on any other reflecting boundary
-        (specular points).
+                  velocities_m_s=None, sonar_velocity_m_s=None, tags: bool = False) -> VirtualScatterers:
+        """Specular paths of point targets: up to ``order`` bounces per leg on every reflecting
+        boundary (:meth:`bounce_sequences`: planar ones by image sources, curved ones by their
+        specular points).
 
         Parameters
         ----------
@@ -421,6 +509,7 @@ class RayScene:
         strength : array_like, shape (n,)
             Complex backscatter amplitudes (m).
         order : int
+            ``effects.max_bounces``: bounces per leg.
         view : Pose, optional
             This ping's sonar frame in the frame the scene was built in (None: the same).
         velocities_m_s : array_like, shape (n, 3), optional
@@ -428,12 +517,16 @@ class RayScene:
             ``sonar_velocity_m_s`` (3,) they give each path's rate of change of length, the
             scatterers' ``rate_m_s`` (m/s, transmit leg + receive leg, the moving sea
             included): its Doppler shift is −f0/c times it.
+        tags : bool
+            Also give each path's :class:`~acoustics.synthesis.scatterers.PathTags` (its
+            target and its bounces, for the arrivals table).
 
         Returns
         -------
         VirtualScatterers
             Image points in the ping's sonar frame: every pair of a transmit leg and a receive
-            leg of the same target but the direct pair.
+            leg of the same target but the direct pair, each bounce sequence once (a path
+            reached twice — the same target, sequences and image points — counts once).
         """
         p = _into(view, np.asarray(positions_m, float).reshape(-1, 3))
         q = np.asarray(strength, complex).reshape(-1)
@@ -447,11 +540,12 @@ class RayScene:
             vel = None if vel is None else vel @ rot.T
             v_s = None if v_s is None else rot @ v_s
         tx_c, rx_c = self.centers(view)
-        t_tgt, t_pt, t_c, t_nb, t_rate = self._legs(tx_c, p, order, vel, v_s)
-        r_tgt, r_pt, r_c, r_nb, r_rate = self._legs(rx_c, p, order, vel, v_s)
+        t_tgt, t_pt, t_c, t_nb, t_rate, t_seq, t_face = self._legs(tx_c, p, order, vel, v_s)
+        r_tgt, r_pt, r_c, r_nb, r_rate, r_seq, r_face = self._legs(rx_c, p, order, vel, v_s)
         # join the legs on the target: every transmit leg with every receive leg
         o = np.argsort(r_tgt, kind="stable")
-        r_tgt, r_pt, r_c, r_nb, r_rate = r_tgt[o], r_pt[o], r_c[o], r_nb[o], r_rate[o]
+        r_tgt, r_pt, r_c, r_nb, r_rate, r_seq, r_face = (a[o] for a in (r_tgt, r_pt, r_c, r_nb, r_rate,
+                                                                      r_seq, r_face))
         lo = np.searchsorted(r_tgt, t_tgt, "left")
         hi = np.searchsorted(r_tgt, t_tgt, "right")
         cnt = hi - lo
@@ -461,10 +555,55 @@ class RayScene:
         ti, ri = ti[bounced], ri[bounced]
         if ti.size == 0:
             return VirtualScatterers.empty()
+        # a path reached twice (two specular points of one sequence that converged to the same
+        # point) counts once: same target, same sequences, image points within 0.1 mm. Image
+        # sources give one path per sequence: only legs with a curved bounce can repeat
+        curved = (t_face[ti] >= 0) | (r_face[ri] >= 0)
+        if curved.sum() > 1:
+            c_ti, c_ri = self.distinct_paths(ti[curved], ri[curved], t_tgt, t_seq, r_seq, t_pt, r_pt)
+            if c_ti.size < int(curved.sum()):
+                ti, ri = np.concatenate([ti[~curved], c_ti]), np.concatenate([ri[~curved], c_ri])
         rates = None if vel is None and v_s is None else t_rate[ti] + r_rate[ri]
+        path_tags = None
+        if tags:
+            from acoustics.synthesis.scatterers import PathTags
+            seqs = [()] + self.bounce_sequences(order)
+            letters = [self.meshes[i].role[0].upper() for i in range(len(self.meshes))]
+            names = [self.meshes[i].name for i in range(len(self.meshes))]
+
+            def label(tx_n, rx_n, tx_f, rx_f):
+                tx_s, rx_s = seqs[tx_n], tuple(reversed(seqs[rx_n]))
+                seq = "-".join([letters[b] for b in tx_s] + ["T"] + [letters[b] for b in rx_s])
+                def hop(b, f, curved):
+                    return f"{names[b]}#{f}" if curved else names[b]
+                via = [hop(b, tx_f, b not in self.planes) for b in tx_s]
+                via += [hop(b, rx_f, b not in self.planes) for b in rx_s]
+                return seq, ";".join(via)
+
+            lab = [label(a, b, c, d) for a, b, c, d in zip(t_seq[ti], r_seq[ri], t_face[ti], r_face[ri])]
+            path_tags = PathTags(target=t_tgt[ti].astype(np.int64),
+                                 sequence=np.array([x[0] for x in lab], dtype=str),
+                                 via=np.array([x[1] for x in lab], dtype=str))
         return VirtualScatterers(_out_of(view, t_pt[ti]), _out_of(view, r_pt[ri]),
                                  q[t_tgt[ti]] * t_c[ti] * r_c[ri], np.full(ti.size, "multipath"),
-                                 rates)
+                                 rates, tags=path_tags)
+
+    def distinct_paths(self, ti, ri, t_tgt, t_seq, r_seq, t_pt, r_pt, tol_m: float = 1e-4):
+        """The joined legs (ti, ri) less repeats of one path: rows of the same target and
+        bounce sequences whose transmit and receive image points agree within ``tol_m``."""
+        tg, ts, rq, tp, rp = t_tgt[ti], t_seq[ti], r_seq[ri], t_pt[ti], r_pt[ri]
+        length = np.linalg.norm(tp, axis=1) + np.linalg.norm(rp, axis=1)
+        order = np.lexsort((length, rq, ts, tg))
+        a, b = order[:-1], order[1:]
+        same = ((tg[a] == tg[b]) & (ts[a] == ts[b]) & (rq[a] == rq[b])
+                & (np.linalg.norm(tp[a] - tp[b], axis=1) < tol_m)
+                & (np.linalg.norm(rp[a] - rp[b], axis=1) < tol_m))
+        if not same.any():
+            return ti, ri
+        keep = np.ones(ti.size, bool)
+        keep[b[same]] = False
+        self.caster._count("duplicate_paths_dropped", int((~keep).sum()))
+        return ti[keep], ri[keep]
 
     # -------------------------------------------------------------- mesh targets
     def mesh_targets(self, view: Pose | None = None) -> VirtualScatterers:

@@ -293,7 +293,7 @@ Reflection = Annotated[Union[Annotated[ConstantReflection, Tag("constant")],
 class BoundarySpec(ConfigModel):
     """A boundary mesh (sea surface, sea floor, rock) and its acoustics.
 
-    Specular paths: planar meshes by image sources (up to ``effects.multipath_order`` bounces
+    Specular paths: planar meshes by image sources (up to ``effects.max_bounces`` bounces
     per leg); any other mesh by its specular points (one bounce per leg,
     acoustics/paths/specular.py)."""
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import warnings
 from pathlib import Path
 from typing import Literal
 
@@ -27,7 +28,7 @@ from processing.base.config import (ConfigError, ConfigModel, Count, NonNegative
                                PositiveReal, Real, dump_yaml, parse_yaml, validate_file)
 
 __all__ = ["SCHEMA_VERSION", "Scene", "SignalSpec", "AdcSpec", "SamplingSpec", "MediumSpec",
-           "NoiseSpec", "PingsSpec", "EffectsSpec", "json_schema", "json_schema_text"]
+           "NoiseSpec", "PingsSpec", "EffectsSpec", "ArrivalsSpec", "MAX_BOUNCES", "json_schema", "json_schema_text"]
 
 SCHEMA_VERSION = 1
 
@@ -151,6 +152,20 @@ class PingsSpec(ConfigModel):
         return self
 
 
+#: the most specular bounces per leg a scene may ask for (planar image sources grow as the
+#: number of boundaries to this power)
+MAX_BOUNCES = 4
+
+
+class ArrivalsSpec(ConfigModel):
+    """Per-arrival ground truth: one row per path of every ping (docs/dataset.md, "Arrivals")."""
+
+    enabled: bool = False
+    """Record every arrival (``abacus simulate --arrivals`` sets it)."""
+    floor_db: Real | None = Field(-80.0, ge=-400.0, le=0.0)
+    """Keep arrivals no more than this far (dB) below the ping's strongest; null keeps all."""
+
+
 class EffectsSpec(ConfigModel):
     """Fidelity settings and switches of the forward model (docs/accuracy.md)."""
 
@@ -173,10 +188,11 @@ class EffectsSpec(ConfigModel):
     occlusion: bool = True
     """Point targets whose transmit or receive path a mesh blocks give no direct echo (only
     with meshes in the scene)."""
-    multipath_order: Count = Field(0, le=3)
-    """Specular bounces per leg on planar boundaries (0: none; 1: Tx→boundary→target→Rx,
-    Tx→target→boundary→Rx and both); any order ≥ 1 adds one bounce per leg off curved
-    boundaries (a wavy sea: their specular points)."""
+    max_bounces: Count = Field(0, le=MAX_BOUNCES)
+    """Specular bounces per leg, every reflecting boundary (0: none; 1: Tx→boundary→target→Rx,
+    Tx→target→boundary→Rx and both). Planar boundaries by image sources, any sequence of them;
+    a curved boundary (a wavy sea) by its specular points, alone or between planar bounces
+    (docs/scenes.md, "Multipath"). Replaces ``multipath_order`` (still read, with a warning)."""
     specular: SpecularSpec = SpecularSpec()
     reverberation: ReverberationSpec = ReverberationSpec()
     doppler: bool = False
@@ -193,6 +209,33 @@ class EffectsSpec(ConfigModel):
     roll (docs/accuracy.md, "within-ping motion")."""
     ray_threads: PositiveCount | None = None
     """Threads for ray batches (default: every core)."""
+    arrivals: ArrivalsSpec = ArrivalsSpec()
+    """Per-arrival ground truth (off: the run pays nothing for it)."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _old_bounce_key(cls, data):
+        """``multipath_order`` (abacus ≤ issue 30) is read as ``max_bounces``."""
+        if isinstance(data, dict) and "multipath_order" in data:
+            data = dict(data)
+            old = data.pop("multipath_order")
+            if "max_bounces" in data:
+                raise ValueError("multipath_order and max_bounces both given: "
+                                 "keep max_bounces (multipath_order is its old name)")
+            if isinstance(old, bool) or not isinstance(old, int) or not 0 <= old <= MAX_BOUNCES:
+                # one line, not a deprecation warning and then an error about the new key
+                raise ValueError(f"multipath_order (now max_bounces) must be an integer from 0 "
+                                 f"to {MAX_BOUNCES}, got {old!r}")
+            warnings.warn("effects.multipath_order is deprecated: read as effects.max_bounces "
+                          "(the same count of bounces per leg, now for every boundary)",
+                          FutureWarning, stacklevel=2)
+            data["max_bounces"] = old
+        return data
+
+    @property
+    def multipath_order(self) -> int:
+        """The old name of :attr:`max_bounces` (read-only)."""
+        return self.max_bounces
 
 
 class Scene(ConfigModel):

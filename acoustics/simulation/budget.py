@@ -187,7 +187,12 @@ def estimate_scene(scene, *, pings: int | None = None, write: bool = True,
     per_mesh = [mesh_faces(spec, resolve) for _, spec in mesh_specs]
     faces = sum(per_mesh)
     mesh_target_faces = sum(n for (key, _), n in zip(mesh_specs, per_mesh) if key.startswith("targets"))
-    per_target = (1 + 2 * fx.multipath_order * max(1, len(scene.boundaries)))
+    # legs per target: direct and every sequence of up to K bounces among B boundaries, no
+    # boundary twice in a row (Σ B (B − 1)^(k−1)); a path is a pair of legs (an estimate:
+    # glints of a wavy sea can add a few per sequence)
+    n_b = max(1, len(scene.boundaries))
+    legs = 1 + sum(n_b * (n_b - 1) ** (k - 1) for k in range(1, fx.max_bounces + 1))
+    per_target = legs * legs
     scatterer_bytes = _SCATTERER_BYTES + (n_ch * 16.0 if fx.directivity == "huygens" else 0.0)
     n_scat = n_targets * per_target + rays + mesh_target_faces
     scatterers = n_scat * scatterer_bytes

@@ -14,7 +14,8 @@ import numpy as np
 import xarray as xr
 
 from processing.base.contract import (BEAM_GROUP_NAME, CHANNEL, ELEMENT_GROUP, ENVIRONMENT_GROUP, PLATFORM_GROUP,
-                                      PROVENANCE_GROUP, ROOT_GROUP, SONAR_GROUP, TRUTH_GROUP)
+                                      PROVENANCE_GROUP, ROOT_GROUP, SONAR_GROUP, TRUTH_GROUP,
+                                      ARRIVALS_GROUP)
 from processing.base.groups import build_group, complex_pair, per_beam, per_ping, tree_of
 
 from acoustics.frames import cartesian_to_spherical
@@ -81,7 +82,8 @@ def _ping_times(scene, pings):
     return start + np.asarray(pings, np.int64) * step
 
 
-def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.DataTree:
+def build_tree(scene, setup, pings, samples, clipped, truth, log, seed, *,
+               arrivals=None) -> xr.DataTree:
     """The DataTree of one simulation run, every group made by the contract's builder
     (processing/base/contract.py has the layout).
 
@@ -101,11 +103,15 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.Da
         The targets of each ping.
     log : StageLog
     seed : int
+    arrivals : list of dict, optional
+        Each ping's arrivals table (acoustics/simulation/arrival_table.py): written as
+        /Vendor_specific/Arrivals.
 
     Returns
     -------
     xarray.DataTree
-        /, /Environment, /Platform, /Provenance, /Sonar, /Sonar/Beam_group1, /Vendor_specific.
+        /, /Environment, /Platform, /Provenance, /Sonar, /Sonar/Beam_group1, /Vendor_specific
+        (and /Vendor_specific/Arrivals with ``arrivals``).
     """
     sonar, medium, pulse = setup.sonar, setup.medium, setup.pulse
     s = scene.sampling
@@ -171,9 +177,26 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed) -> xr.Da
                     psi_element_sr=float(np.trapezoid(cal_width, cal_az)))
 
     truth_ds = _truth(setup, pings, ping_time, truth)
-    return tree_of({ROOT_GROUP: root, ENVIRONMENT_GROUP: env, PLATFORM_GROUP: platform_ds,
-                    PROVENANCE_GROUP: provenance_dataset(scene, seed, log, rays_cast(setup)),
-                    SONAR_GROUP: sonar_ds, ELEMENT_GROUP: eg, TRUTH_GROUP: truth_ds})
+    groups = {ROOT_GROUP: root, ENVIRONMENT_GROUP: env, PLATFORM_GROUP: platform_ds,
+              PROVENANCE_GROUP: provenance_dataset(scene, seed, log, rays_cast(setup)),
+              SONAR_GROUP: sonar_ds, ELEMENT_GROUP: eg, TRUTH_GROUP: truth_ds}
+    if arrivals is not None:
+        groups[ARRIVALS_GROUP] = _arrivals(scene, setup, arrivals)
+    return tree_of(groups)
+
+
+def _arrivals(scene, setup, tables) -> xr.Dataset:
+    """/Vendor_specific/Arrivals: every ping's arrivals, one row each."""
+    from acoustics.simulation.arrival_table import ALPHABET, concat_tables
+    cols = concat_tables(tables)
+    floor = scene.effects.arrivals.floor_db
+    return build_group(
+        ARRIVALS_GROUP, {f"arrival_{k}": v for k, v in cols.items()},
+        attrs={"alphabet": "; ".join(f"{k}: {v}" for k, v in ALPHABET.items()),
+               "floor_db": "none" if floor is None else float(floor),
+               "max_bounces": int(scene.effects.max_bounces),
+               "transmit_reference_m": [float(x) for x in setup.model.transmitter.phase_center_m],
+               "receive_reference_m": [float(x) for x in setup.model.receiver.phase_center_m]})
 
 
 def _sweep_hz(pulse) -> tuple:

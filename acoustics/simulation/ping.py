@@ -6,6 +6,7 @@ from dataclasses import replace
 import numpy as np
 
 from acoustics.seeds import ping_rng
+from acoustics.simulation.arrival_table import arrival_table, direct_tags
 from acoustics.simulation.setup import Setup
 from acoustics.simulation.stages import StageLog
 from acoustics.synthesis.receiver import band_limited_noise, quantize
@@ -55,8 +56,12 @@ def _with_shadow(targets: TargetSet, shadowed):
 
 
 def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
-                  log: StageLog | None = None):
+                  log: StageLog | None = None, arrivals: list | None = None):
     """One ping.
+
+    ``arrivals``: a list the ping's arrivals table (acoustics/simulation/arrival_table.py) is
+    appended to when the scene records arrivals (``effects.arrivals.enabled``); only then does
+    the ``arrivals`` stage run.
 
     Returns
     -------
@@ -81,7 +86,7 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
     scatters = fx.reverberation.enabled and any(getattr(b, "scattering", None) is not None
                                                 for b in scene.boundaries)
     if rs is not None and rs.moving and (scatters or scene.targets.meshes or (
-            len(targets) and (fx.occlusion or fx.multipath_order > 0))):
+            len(targets) and (fx.occlusion or fx.max_bounces > 0))):
         with log.stage("sea_surface"):
             rs.advance(ping * setup.interval_s)
     shadowed = np.zeros(len(targets), bool)
@@ -99,9 +104,11 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
     if fx.doppler and len(targets):
         with log.stage("doppler"):
             direct_rate = direct_path_rate_m_s(setup, ping, pose, targets)[direct]
+    want = fx.arrivals.enabled
     parts = [VirtualScatterers(targets.position_sonar_m[direct], p_rx[direct],
-                               strength[direct], np.full(int(direct.sum()), "direct"), direct_rate)]
-    if rs is not None and fx.multipath_order > 0 and rs.reflectors and len(targets):
+                               strength[direct], np.full(int(direct.sum()), "direct"), direct_rate,
+                               tags=direct_tags(np.flatnonzero(direct)) if want else None)]
+    if rs is not None and fx.max_bounces > 0 and rs.reflectors and len(targets):
         with log.stage("multipath"):
             kw = {}
             if fx.doppler:   # the paths' rates of change of length, for their Doppler shifts
@@ -109,8 +116,8 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
                        else np.zeros((len(targets), 3)))
                 kw = dict(velocities_m_s=v_t @ pose.rotation,
                           sonar_velocity_m_s=pose.rotation.T @ _sonar_velocity_world(setup, ping))
-            parts.append(rs.multipath(targets.position_sonar_m, strength, fx.multipath_order, view,
-                                      **kw))
+            parts.append(rs.multipath(targets.position_sonar_m, strength, fx.max_bounces, view,
+                                      tags=want, **kw))
     if rs is not None and scene.targets.meshes:
         with log.stage("mesh_targets"):
             parts.append(rs.mesh_targets(view))
@@ -120,6 +127,12 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
     vs = VirtualScatterers.concat(parts)
     # f_d = −f0 (dL/dt) / c of every path; boundary and mesh-target facets hold still (rate 0)
     doppler = vs.doppler_hz(scene.signal.center_frequency_hz, setup.medium.sound_speed_m_s)
+    if want:
+        with log.stage("arrivals"):
+            table = arrival_table(scene, setup, ping, vs, _with_shadow(targets, shadowed),
+                                  doppler, rs, view)
+        if arrivals is not None:
+            arrivals.append(table)
     if len(vs):
         with log.stage("echoes"):
             bistatic = not np.array_equal(vs.p_tx, vs.p_rx)

@@ -4,7 +4,7 @@ Per ping p (independent of every other ping; all draws seeded by (seed, p, strea
 
 1. ``targets``        draw the point targets (positions, backscatter, phases);
 2. ``occlusion``      drop the direct echo of targets a mesh shadows   — only with meshes;
-3. ``multipath``      specular image-source paths                       — only if multipath_order > 0;
+3. ``multipath``      specular image-source paths                       — only if max_bounces > 0;
 4. ``mesh_targets``   physical-optics facets of mesh targets            — only with mesh targets;
 5. ``reverberation``  boundary facet scatterers from transmit rays      — only if enabled;
 6. ``echoes``         synthesise every receiver element's complex baseband samples (fast or exact);
@@ -35,7 +35,8 @@ from acoustics.targets.draw import TargetSet
 __all__ = ["simulate"]
 
 
-def simulate(scene, *, pings=None, seed: int | None = None, progress=None):
+def simulate(scene, *, pings=None, seed: int | None = None, progress=None,
+             arrivals: bool | None = None):
     """Simulate a scene.
 
     Parameters
@@ -52,6 +53,10 @@ def simulate(scene, *, pings=None, seed: int | None = None, progress=None):
         Overrides ``scene.seed``.
     progress : callable(done, total), optional
         Called after each ping.
+    arrivals : bool, optional
+        Record every arrival of every ping (overrides ``effects.arrivals.enabled``): the
+        group /Vendor_specific/Arrivals, one row per path (docs/dataset.md, "Arrivals"), which
+        ``tree["Vendor_specific/Arrivals"].to_dataset()`` gives as a table.
 
     Returns
     -------
@@ -83,6 +88,10 @@ def simulate(scene, *, pings=None, seed: int | None = None, progress=None):
     pings = [int(p) for p in pings]
     if any(p < 0 for p in pings):
         raise ValueError("ping indices must be >= 0")
+    if arrivals is not None and bool(arrivals) != scene.effects.arrivals.enabled:
+        fx = scene.effects
+        scene = scene.model_copy(update={"effects": fx.model_copy(update={
+            "arrivals": fx.arrivals.model_copy(update={"enabled": bool(arrivals)})})})
     log = StageLog()
     with log.stage("setup"):
         setup = make_setup(scene, log)
@@ -92,8 +101,9 @@ def simulate(scene, *, pings=None, seed: int | None = None, progress=None):
     samples = (np.zeros((len(pings), n, n_ch), np.float32), np.zeros((len(pings), n, n_ch), np.float32))
     clipped = np.zeros((len(pings), n_ch), int) if scene.sampling.adc.quantize else None
     truth: list[TargetSet] = []
+    tables = [] if scene.effects.arrivals.enabled else None
     for i, p in enumerate(pings):
-        x, c, t = simulate_ping(scene, setup, p, seed=seed, log=log)
+        x, c, t = simulate_ping(scene, setup, p, seed=seed, log=log, arrivals=tables)
         samples[0][i] = x.real.T
         samples[1][i] = x.imag.T
         if clipped is not None:
@@ -102,7 +112,8 @@ def simulate(scene, *, pings=None, seed: int | None = None, progress=None):
         if progress is not None:
             progress(i + 1, len(pings))
     with log.stage("dataset"):
-        tree = build_tree(scene, setup, pings, samples, clipped, truth, log, seed)
+        tree = build_tree(scene, setup, pings, samples, clipped, truth, log, seed,
+                          arrivals=tables)
     # the provenance was written inside the "dataset" stage: rewrite it with that stage's time
     tree[PROVENANCE_GROUP] = xr.DataTree(provenance_dataset(scene, seed, log, rays_cast(setup)))
     return tree

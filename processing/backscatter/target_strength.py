@@ -104,14 +104,45 @@ class BeamPattern:
         ndarray, shape (n,)
             The two-way amplitude pattern, 1 on the transmitter's axis for on-axis elements.
         """
+        return self.transmit(directions) * self.receive(directions)
+
+    @staticmethod
+    def _unit(directions):
         u = np.asarray(directions, float).reshape(-1, 3)
         norm = np.linalg.norm(u, axis=1, keepdims=True)
-        u = np.where(norm > 0, u / np.where(norm > 0, norm, 1.0), np.array([0.0, 0.0, 1.0]))
+        return np.where(norm > 0, u / np.where(norm > 0, norm, 1.0), np.array([0.0, 0.0, 1.0]))
+
+    def transmit(self, directions):
+        """|E_t(u)|: the transmitter's one-way pattern towards ``directions`` (n, 3), shape (n,)
+        (1 on its axis)."""
+        u = self._unit(directions)
         phase = np.exp(1j * self.k * ((self.tx_center_m - self._tx_ref) @ u.T)).T    # (n, n_t)
-        e_t = np.abs((self._pistons(u, self.tx_size_m, self.tx_rotation_rad) * phase)
-                     @ self.tx_weight) / np.abs(self.tx_weight.sum())
-        d = self._pistons(u, self.rx_size_m, self.rx_rotation_rad).mean(axis=1)
-        return e_t * np.abs(d)
+        return np.abs((self._pistons(u, self.tx_size_m, self.tx_rotation_rad) * phase)
+                      @ self.tx_weight) / np.abs(self.tx_weight.sum())
+
+    def transmit_at(self, points_m):
+        """|E_t(P)| at points ``points_m`` (n, 3) (m, sonar frame), shape (n,): the elements'
+        fields summed with their exact distances, R_T/R_e e^{−jk(R_e − R_T)} D_e, R_T from the
+        transmitter's phase centre — the near field (a null of the far-field pattern is filled
+        at a few Rayleigh distances), the far-field pattern far away."""
+        p = np.asarray(points_m, float).reshape(-1, 3)
+        d = p[:, None, :] - self.tx_center_m[None, :, :]                       # (n, n_t, 3)
+        r_e = np.maximum(np.linalg.norm(d, axis=2), 1e-9)
+        u = d / r_e[..., None]
+        c, s = np.cos(self.tx_rotation_rad), np.sin(self.tx_rotation_rad)
+        ux = u[..., 0] * c + u[..., 1] * s
+        uy = -u[..., 0] * s + u[..., 1] * c
+        dir_e = (np.sinc(0.5 * self.k * self.tx_size_m[:, 0] * ux / np.pi)
+                 * np.sinc(0.5 * self.k * self.tx_size_m[:, 1] * uy / np.pi))
+        dir_e = np.where(u[..., 2] < 0.0, 0.0, dir_e)
+        r_t = np.maximum(np.linalg.norm(p - self._tx_ref, axis=1), 1e-9)[:, None]
+        field = dir_e * (r_t / r_e) * np.exp(-1j * self.k * (r_e - r_t))
+        return np.abs(field @ self.tx_weight) / np.abs(self.tx_weight.sum())
+
+    def receive(self, directions):
+        """|D(u)|: the receive elements' one-way pattern from ``directions`` (n, 3), shape (n,)."""
+        u = self._unit(directions)
+        return np.abs(self._pistons(u, self.rx_size_m, self.rx_rotation_rad).mean(axis=1))
 
     def near_field_db(self, positions_m) -> np.ndarray:
         """The near field's share of the two-way pattern at located positions (dB, ≤ 0 near the

@@ -25,8 +25,8 @@ import sys
 from dataclasses import dataclass
 
 __all__ = ["ROOT_GROUP", "ENVIRONMENT_GROUP", "PLATFORM_GROUP", "PROVENANCE_GROUP", "SONAR_GROUP",
-           "BEAM_GROUP_NAME", "ELEMENT_GROUP", "TRUTH_GROUP", "PROCESSING_GROUP", "DETECTIONS_GROUP",
-           "COUNTS_GROUP", "SV_GROUP", "TRACKS_GROUP", "PRODUCT_GROUPS", "LEGACY_ELEMENT_GROUP",
+           "BEAM_GROUP_NAME", "ELEMENT_GROUP", "TRUTH_GROUP", "ARRIVALS_GROUP", "PROCESSING_GROUP", "DETECTIONS_GROUP",
+           "COUNTS_GROUP", "SV_GROUP", "TRACKS_GROUP", "LABELS_GROUP", "PRODUCT_GROUPS", "LEGACY_ELEMENT_GROUP",
            "LEGACY_TRUTH_GROUP", "CONVENTIONS", "CHANNEL", "KINDS", "Variable", "Attribute", "Group",
            "GROUPS", "group_spec", "node_path", "markdown", "MARKDOWN_BEGIN", "MARKDOWN_END"]
 
@@ -41,6 +41,8 @@ BEAM_GROUP_NAME = "Beam_group1"
 ELEMENT_GROUP = f"{SONAR_GROUP}/{BEAM_GROUP_NAME}"
 #: abacus' ground truth (simulated data only)
 TRUTH_GROUP = "Vendor_specific"
+#: abacus' per-arrival ground truth (simulated data, only when a run records arrivals)
+ARRIVALS_GROUP = f"{TRUTH_GROUP}/Arrivals"
 
 #: processing's products, each written by the module named
 PROCESSING_GROUP = "Processing"
@@ -48,12 +50,14 @@ DETECTIONS_GROUP = f"{PROCESSING_GROUP}/Detections"
 COUNTS_GROUP = f"{PROCESSING_GROUP}/Counts"
 SV_GROUP = f"{PROCESSING_GROUP}/Sv"
 TRACKS_GROUP = f"{PROCESSING_GROUP}/Tracks"
+LABELS_GROUP = f"{PROCESSING_GROUP}/Labels"
 PRODUCT_GROUPS = {
     PROCESSING_GROUP: "processing.records: images and how they were made",
     DETECTIONS_GROUP: "processing.records: one row per detection",
     COUNTS_GROUP: "processing.records: counts and densities per ping",
     SV_GROUP: "processing.backscatter.sv: MVBS grid and NASC",
     TRACKS_GROUP: "processing.tracking.tracks: tracks and track points",
+    LABELS_GROUP: "processing.imaging.labels: what made each image cell (simulated data with arrivals)",
 }
 
 #: the layout abacus wrote before SONAR-netCDF4 1.0 (read by `abacus convert`)
@@ -433,8 +437,61 @@ _TRUTH = Group(f"/{TRUTH_GROUP}", "abacus' ground truth: every target of every p
     Attribute("counting_volume_m3", "its volume (13.8 m³ for the thesis)"),
 ))
 
+_ARRIVAL = "arrival"
+_WITH_ARRIVALS = "with effects.arrivals (`abacus simulate --arrivals`)"
+
+
+def _a(name: str, units: str | None, kind: str, doc: str, **kw) -> Variable:
+    return _v(f"arrival_{name}", _ARRIVAL, units, kind, doc, when=_WITH_ARRIVALS, **kw)
+
+
+_ARRIVALS = Group(f"/{ARRIVALS_GROUP}", "abacus' per-arrival ground truth: one row per path of "
+                  "every ping (a vendor-specific extension; docs/dataset.md, \"Arrivals\")", (
+    _a("ping_index", None, "i", "the ping of each row"),
+    _a("target_id", None, "i", "the target whose echo it is (`target_id` of /Vendor_specific); "
+       "−1 for a facet"),
+    _a("sequence", None, "U", "interactions in propagation order, `-`-joined: T target, S/F/O "
+       "specular bounce off a surface/floor/obstacle, RS/RF/RO a surface/floor/obstacle facet "
+       "(reverberation), M a mesh target's facet (`T`, `S-T`, `T-S`, `S-T-S`, `F-T-S`, `RF`)"),
+    _a("scatterer", None, "U", "`target <id>`, or `<boundary or mesh target>#<facet>`"),
+    _a("boundary", None, "U", "the boundary or mesh target of a facet (empty for a target)"),
+    _a("facet", None, "i", "the facet's index in its mesh (−1 for a target)"),
+    _a("via", None, "U", "the boundaries bounced off, in order, `;`-separated "
+       "(`name#facet` for a curved one)"),
+    _a("bounces", "1", "i", "specular bounces of the path (both legs)"),
+    _a("delay", "s", "f", "two-way delay from the transmitter's phase centre to the receiver's"),
+    _a("transmit_range", "m", "f", "transmit leg length, unfolded (through its bounces)"),
+    _a("receive_range", "m", "f", "receive leg length, unfolded (through its bounces)"),
+    _a("level", "dB re source level at 1 m", "f",
+       "level at the receiver's phase centre without the sonar's directivities: 20 log10 |amplitude|"),
+    _a("amplitude_r", "1", "f", "complex amplitude q g(r1) g(r2) e^{−jk(r1+r2)} (re the source "
+       "level at 1 m), real and imaginary parts"),
+    _a("amplitude_i", "1", "f", "complex amplitude q g(r1) g(r2) e^{−jk(r1+r2)} (re the source "
+       "level at 1 m), real and imaginary parts"),
+    _a("departure_azimuth", "rad", "f", "direction the path leaves the transmitter in (sonar frame)",
+       attrs=_FRAME_SONAR),
+    _a("departure_elevation", "rad", "f", "direction the path leaves the transmitter in (sonar frame)",
+       attrs=_FRAME_SONAR),
+    _a("azimuth", "rad", "f", "direction the path arrives from at the receiver (sonar frame)",
+       attrs=_FRAME_SONAR),
+    _a("elevation", "rad", "f", "direction the path arrives from at the receiver (sonar frame)",
+       attrs=_FRAME_SONAR),
+    _a("doppler", "Hz", "f", "Doppler shift −f0 (dL/dt)/c (0 without `effects.doppler`)"),
+    _a("shadowed", None, "i", "1 where a mesh blocks the target's direct path"),
+), (
+    Attribute("alphabet", "the interaction alphabet of `arrival_sequence`"),
+    Attribute("floor_db", "rows are kept down to this level (dB) below each ping's strongest "
+              "(`none`: every row)"),
+    Attribute("max_bounces", "`effects.max_bounces` of the run"),
+    Attribute("transmit_reference_m", "the transmitter's phase centre (m, sonar frame): where "
+              "delays and departure directions start"),
+    Attribute("receive_reference_m", "the receiver's phase centre (m, sonar frame): where "
+              "delays and arrival directions end"),
+))
+
 #: node path -> its group, in the order of the file
-GROUPS = {g.path: g for g in (_ROOT, _ENVIRONMENT, _PLATFORM, _PROVENANCE, _SONAR, _BEAM_GROUP, _TRUTH)}
+GROUPS = {g.path: g for g in (_ROOT, _ENVIRONMENT, _PLATFORM, _PROVENANCE, _SONAR, _BEAM_GROUP, _TRUTH,
+                              _ARRIVALS)}
 
 
 def node_path(group: str) -> str:
