@@ -80,6 +80,7 @@ class RayScene:
     medium: Medium
     frequency_hz: float
     _reverb_rays: tuple | None = None
+    _reverb_fan: tuple | None = None
     _mesh_target_scatterers: VirtualScatterers | None = None
     _mesh_target_view: bytes | None = None
     hit_sample: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
@@ -168,8 +169,12 @@ class RayScene:
         return VirtualScatterers(pts, pts.copy(), amp * np.exp(1j * phase),
                                  np.full(n, "reverberation"))
 
-    def _cast_reverberation_rays(self, scene, setup, seed, view: Pose | None = None):
-        spec = scene.effects.reverberation
+    def _reverberation_fan(self, spec, setup, seed):
+        """The fan's unit directions (n, 3) in the sonar frame and their solid angles (n,) (sr):
+        fixed for a run (frozen jitter), so made once, whatever the views."""
+        key = (spec.beam_level_db, spec.rays_per_square_degree, int(seed))
+        if self._reverb_fan is not None and self._reverb_fan[0] == key:
+            return self._reverb_fan[1]
         tx = setup.sonar.transmitter
         lvl = spec.beam_level_db
         kw = dict(medium=setup.medium, frequency_hz=self.frequency_hz)
@@ -188,6 +193,12 @@ class RayScene:
         el = el_lo + (ie.ravel() + rng.random(ie.size)) * d_el
         u = np.stack([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)], -1)
         solid = np.cos(el) * d_az * d_el
+        self._reverb_fan = (key, (u, solid))
+        return u, solid
+
+    def _cast_reverberation_rays(self, scene, setup, seed, view: Pose | None = None):
+        spec = scene.effects.reverberation
+        u, solid = self._reverberation_fan(spec, setup, seed)
         s = scene.sampling
         c = setup.medium.sound_speed_m_s
         r_max = spec.max_range_m or c * (s.time_offset_s + s.samples / s.rate_hz) / 2

@@ -209,43 +209,71 @@ def _candidates(V, F, N, S, P, tol, cap, out_pair, out_face, out_st):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _candidates_blocked(V, F, N, S, P, tol, order, starts, centre, radius, axis, spread, margin,
-                        cap, out_pair, out_face, out_st):
+def _block_mask(S, P, centre, radius, axis, cos_a, sin_a, wide, margin_ok, mask):
+    """mask[blk] = 1 where the reflection law may hold in block blk for the pair (S, P): the
+    test of :func:`_candidates_blocked` without branches, so that it vectorises — the
+    angle test ang > a + asin(x) (a = cone + margin, x = turn / |b|) as cos(ang) < cos a √(1−x²)
+    − sin a · x, valid while a + asin(x) < π (``wide`` blocks, a ≥ π/2, may exceed it)."""
+    for blk in range(centre.shape[0]):
+        rho = radius[blk]
+        dx, dy, dz = centre[blk, 0] - S[0], centre[blk, 1] - S[1], centre[blk, 2] - S[2]
+        r_s = np.sqrt(dx * dx + dy * dy + dz * dz)
+        ex, ey, ez = centre[blk, 0] - P[0], centre[blk, 1] - P[1], centre[blk, 2] - P[2]
+        r_p = np.sqrt(ex * ex + ey * ey + ez * ez)
+        near = (r_s <= 2.0 * rho) | (r_p <= 2.0 * rho)
+        # far enough from both ends here (near ones pass whatever these give)
+        i_s = 1.0 / max(r_s, 1e-300)
+        i_p = 1.0 / max(r_p, 1e-300)
+        bx = dx * i_s + ex * i_p
+        by = dy * i_s + ey * i_p
+        bz = dz * i_s + ez * i_p
+        turn = 2.0 * rho / max(r_s - rho, 1e-300) + 2.0 * rho / max(r_p - rho, 1e-300)
+        m = np.sqrt(bx * bx + by * by + bz * bz)
+        x = min(1.0, turn / max(m, 1e-300))
+        cosang = abs(bx * axis[blk, 0] + by * axis[blk, 1] + bz * axis[blk, 2]) / max(m, 1e-300)
+        limit = cos_a[blk] * np.sqrt(1.0 - x * x) - sin_a[blk] * x
+        skip = (~near) & (m > turn) & (cosang < limit) & margin_ok[blk] & ~(wide[blk] & (x >= sin_a[blk]))
+        mask[blk] = 0 if skip else 1
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _candidates_blocked(V, F, N, S, P, tol, order, starts, centre, radius, axis, spread, bvert,
+                        bvstart, local, margin, cap, out_pair, out_face, out_st):
     """:func:`_candidates` over blocks of spatially close facets, skipping a block where the
     reflection law cannot hold: the angle between the legs' bisector at its centre and the
     block's normal cone exceeds the cone's half-angle, plus the most the bisector can turn
-    within the block's bounding sphere, plus ``margin`` (rad)."""
+    within the block's bounding sphere, plus ``margin`` (rad). In a block that may hold a
+    bounce point each vertex's residual is evaluated once (``bvert``: the blocks' vertices,
+    ``local``: each facet's three, indexed into its block's), as :func:`_candidates` does."""
     k = 0
+    n_b = starts.shape[0] - 1
+    a = np.empty(n_b)
+    for blk in range(n_b):
+        a[blk] = spread[blk] + margin
+    cos_a = np.cos(a)
+    sin_a = np.sin(a)
+    wide = a >= 0.5 * np.pi
+    margin_ok = a < np.pi          # a cone of half-angle π or more holds every direction
+    mask = np.empty(n_b, np.uint8)
+    most = 0
+    for blk in range(n_b):
+        most = max(most, bvstart[blk + 1] - bvstart[blk])
+    tang = np.empty((most, 3))
     for j in range(S.shape[0]):
-        for blk in range(starts.shape[0] - 1):
-            rho = radius[blk]
-            bx = by = bz = 0.0
-            turn = 0.0
-            near = False
-            for w in range(2):
-                Q = S[j] if w == 0 else P[j]
-                dx, dy, dz = centre[blk, 0] - Q[0], centre[blk, 1] - Q[1], centre[blk, 2] - Q[2]
-                r = np.sqrt(dx * dx + dy * dy + dz * dz)
-                if r <= 2.0 * rho:
-                    near = True
-                    break
-                bx += dx / r
-                by += dy / r
-                bz += dz / r
-                turn += 2.0 * rho / (r - rho)      # ≥ |Δê| over the sphere (chord ≤ 2 sin)
-            if not near:
-                m = np.sqrt(bx * bx + by * by + bz * bz)
-                if m > turn:
-                    cosang = abs(bx * axis[blk, 0] + by * axis[blk, 1] + bz * axis[blk, 2]) / m
-                    ang = np.arccos(min(1.0, cosang))
-                    if ang > spread[blk] + np.arcsin(min(1.0, turn / m)) + margin:
-                        continue
+        _block_mask(S[j], P[j], centre, radius, axis, cos_a, sin_a, wide, margin_ok, mask)
+        for blk in range(n_b):
+            if mask[blk] == 0:
+                continue
+            v0 = bvstart[blk]
+            for u in range(bvstart[blk + 1] - v0):
+                tang[u, 0], tang[u, 1], tang[u, 2] = _residual(V, N, S[j], P[j], bvert[v0 + u])
             for i in range(starts[blk], starts[blk + 1]):
                 f = order[i]
-                a, b, c = F[f, 0], F[f, 1], F[f, 2]
-                ok, s, t = _facet_zero(V, a, b, c, _residual(V, N, S[j], P[j], a),
-                                       _residual(V, N, S[j], P[j], b),
-                                       _residual(V, N, S[j], P[j], c), tol)
+                la, lb, lc = local[i, 0], local[i, 1], local[i, 2]
+                ok, s, t = _facet_zero(V, F[f, 0], F[f, 1], F[f, 2],
+                                       (tang[la, 0], tang[la, 1], tang[la, 2]),
+                                       (tang[lb, 0], tang[lb, 1], tang[lb, 2]),
+                                       (tang[lc, 0], tang[lc, 1], tang[lc, 2]), tol)
                 if ok:
                     k = _keep(k, cap, j, f, s, t, out_pair, out_face, out_st)
     return k
@@ -276,7 +304,29 @@ def _blocks(V, F, N, size: int = 32):
     axis = np.where(na[:, None] > 0, a / np.where(na > 0, na, 1.0)[:, None], [0.0, 0.0, 1.0])
     cosv = np.clip(np.einsum("ij,ij->i", nrm, axis[owner]), -1.0, 1.0)
     spread = np.where(na > 0, np.arccos(np.minimum.reduceat(cosv, at)), np.pi)
-    return order.astype(np.int64), starts, centre, radius, axis, spread
+    # each block's distinct vertices, and each facet's three as indices into its block's list
+    key = owner.astype(np.int64) * len(V) + fv
+    uniq = np.unique(key)
+    bvert = (uniq % len(V)).astype(np.int64)
+    bvstart = np.searchsorted(uniq, np.arange(at.size + 1, dtype=np.int64) * len(V)).astype(np.int64)
+    local = (np.searchsorted(uniq, key) - bvstart[owner]).reshape(-1, 3).astype(np.int64)
+    return (order.astype(np.int64), starts, centre, radius, axis, spread, bvert, bvstart,
+            np.ascontiguousarray(local))
+
+
+#: the blocks of the last few static meshes searched, keyed by the caller's arrays (held, so
+#: that their ids stay theirs); a moving sea's mesh is new every ping and simply misses
+_BLOCK_CACHE: list = []
+
+
+def _blocks_of(vertices, faces, normals, V, F, N):
+    for entry in _BLOCK_CACHE:
+        if entry[0] is vertices and entry[1] is faces and entry[2] is normals:
+            return entry[3]
+    blocks = _blocks(V, F, N)
+    _BLOCK_CACHE.insert(0, (vertices, faces, normals, blocks))
+    del _BLOCK_CACHE[4:]
+    return blocks
 
 
 def _unit(x):
@@ -360,6 +410,34 @@ def _inside_xy(tri_xy, xy, eps):
     return (s >= -eps) & (t >= -eps) & (s + t <= 1 + eps), np.column_stack([s, t])
 
 
+def _search_split(V, F, N, S, P, tol, blocks, cap):
+    """The blocked search with the pairs split across two threads (the kernel releases the
+    GIL); the parts join in pair order, so the rows do not depend on the split."""
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    def run(lo, hi):
+        c = max(256, cap * (hi - lo) // max(S.shape[0], 1))
+        while True:
+            pair = np.empty(c, np.int64)
+            face = np.empty(c, np.int64)
+            st = np.empty((c, 2))
+            k = _candidates_blocked(V, F, N, S[lo:hi], P[lo:hi], tol, *blocks, 0.1, c, pair,
+                                    face, st)
+            if k <= c:
+                return pair[:k] + lo, face[:k], st[:k]
+            c = k
+
+    n = S.shape[0]
+    parts = min(2, os.cpu_count() or 1) if n >= 64 else 1
+    cuts = np.linspace(0, n, parts + 1).astype(int)
+    if parts == 1:
+        return run(0, n)
+    with ThreadPoolExecutor(parts) as pool:
+        out = list(pool.map(lambda i: run(cuts[i], cuts[i + 1]), range(parts)))
+    return tuple(np.concatenate(col) for col in zip(*out))
+
+
 def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenumber=None,
                     newton_iterations: int = 8, focusing_limit_db: float = 20.0,
                     search_tolerance: float = 0.1, height_field=None,
@@ -411,20 +489,19 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
     if not (np.all(np.isfinite(S)) and np.all(np.isfinite(P))):
         raise ValueError("specular_points: sources and receivers must be finite")
     cap = max(256, 32 * S.shape[0])      # a wavy sea: a few glints per pair
-    blocks = _blocks(V, F, N) if cull else None
-    while True:
-        pair = np.empty(cap, np.int64)
-        face = np.empty(cap, np.int64)
-        st = np.empty((cap, 2))
-        if blocks is None:
+    blocks = _blocks_of(vertices, faces, normals, V, F, N) if cull else None
+    if blocks is None:
+        while True:
+            pair = np.empty(cap, np.int64)
+            face = np.empty(cap, np.int64)
+            st = np.empty((cap, 2))
             k = _candidates(V, F, N, S, P, search_tolerance, cap, pair, face, st)
-        else:
-            k = _candidates_blocked(V, F, N, S, P, search_tolerance, *blocks, 0.1, cap, pair,
-                                    face, st)
-        if k <= cap:
-            break
-        cap = k
-    pair, face, st = pair[:k], face[:k], st[:k]
+            if k <= cap:
+                break
+            cap = k
+        pair, face, st = pair[:k], face[:k], st[:k]
+    else:
+        pair, face, st = _search_split(V, F, N, S, P, search_tolerance, blocks, cap)
     Sq, Pq = S[pair], P[pair]
     rot = None
     if height_field is not None:
