@@ -92,6 +92,9 @@ class RayScene:
     """(mesh index, start, SpecularPoints, visible) of the last ``multipath`` call (views)."""
     _normal_cache: dict = field(default_factory=dict)
     time_s: float = 0.0
+    fan_extent_rad: tuple | None = None
+    """(az_lo, az_hi, el_lo, el_hi) (rad) of the transmitter's principal cuts above
+    ``effects.specular.beam_level_db`` in the sonar frame; None: specular search everywhere."""
 
     # ------------------------------------------------------------------- the sea
     @property
@@ -113,7 +116,10 @@ class RayScene:
         self._reverb_rays = None
         self._mesh_target_scatterers = None
         self._mesh_target_view = None
-        self._normal_cache.clear()
+        # a still mesh's vertex normals stay (a rough floor's cost as much as its search)
+        still = {id(sm.mesh) for sm in self.meshes if not sm.moving}
+        for key in [k for k in self._normal_cache if k not in still]:
+            del self._normal_cache[key]
         self.time_s = float(time_s)
 
     # ---------------------------------------------------------------- occlusion
@@ -298,7 +304,8 @@ class RayScene:
             self._normal_cache[key] = vertex_normals(sm.mesh.vertices, sm.mesh.faces)
         return self._normal_cache[key]
 
-    def specular_legs(self, start, ends, velocities=None, start_velocity=None):
+    def specular_legs(self, start, ends, velocities=None, start_velocity=None, *,
+                      fan_view=False, view=None):
         """One-bounce legs from ``start`` to each of ``ends`` off every curved boundary.
 
         Parameters
@@ -333,10 +340,14 @@ class RayScene:
             if sm.moving and spec.exact_surface:
                 t_sea = sm.time_s
                 exact = (lambda x, y, _s=sm.surface, _t=t_sea: _s.height(x, y, _t), sm.placement)
+            window = None
+            if fan_view and self.fan_extent_rad is not None:
+                window = (start, np.eye(3) if view is None else view.rotation, self.fan_extent_rad)
             sp = specular_points(sm.mesh.vertices, sm.mesh.faces, self._normals(i),
                                  np.broadcast_to(start, ends.shape), ends,
                                  newton_iterations=spec.newton_iterations,
-                                 focusing_limit_db=spec.focusing_limit_db, height_field=exact)
+                                 focusing_limit_db=spec.focusing_limit_db, height_field=exact,
+                                 window=window)
             if not len(sp):
                 continue
             if sp.capped.any():
@@ -381,7 +392,8 @@ class RayScene:
             out += b[:, 2] * sm.surface.vertical_velocity(own[:, 0], own[:, 1], sm.time_s)
         return out
 
-    def _legs(self, start, p, order, velocities=None, start_velocity=None):
+    def _legs(self, start, p, order, velocities=None, start_velocity=None, *, fan_view=False,
+              view=None, curved_targets=None):
         """Every leg from ``start`` to the targets ``p``: direct, plane images up to ``order``
         bounces, one bounce off each curved boundary; as flat rows (target, point, Π R, bounces,
         dL/dt), velocities (m/s) in the built frame."""
@@ -415,8 +427,12 @@ class RayScene:
             rows.append((idx, image[idx], coef[idx], np.full(idx.size, len(seq)),
                          rate(image[idx], idx, mirror_v)))
         if self.curved and order >= 1:
-            t, im, c, r = self.specular_legs(start, p, velocities, start_velocity)
-            rows.append((t, im, c, np.ones(t.size, int), r))
+            sub = np.arange(n) if curved_targets is None else curved_targets
+            if sub.size:
+                t, im, c, r = self.specular_legs(start, p[sub], None if velocities is None
+                                                 else velocities[sub], start_velocity,
+                                                 fan_view=fan_view, view=view)
+                rows.append((sub[t], im, c, np.ones(t.size, int), r))
         return tuple(np.concatenate(col) for col in zip(*rows))
 
     def multipath(self, positions_m, strength, order: int, view: Pose | None = None, *,
@@ -458,8 +474,25 @@ class RayScene:
             vel = None if vel is None else vel @ rot.T
             v_s = None if v_s is None else rot @ v_s
         tx_c, rx_c = self.centers(view)
-        t_tgt, t_pt, t_c, t_nb, t_rate = self._legs(tx_c, p, order, vel, v_s)
-        r_tgt, r_pt, r_c, r_nb, r_rate = self._legs(rx_c, p, order, vel, v_s)
+        fan = self.fan_extent_rad is not None
+        t_tgt, t_pt, t_c, t_nb, t_rate = self._legs(tx_c, p, order, vel, v_s, fan_view=fan,
+                                                    view=view)
+        rx_targets = None
+        if fan:
+            # a receive leg's bounce pairs with every transmit leg of its target: only targets
+            # the fan lights directly, or through a bounce, send such a path above the level
+            az_lo, az_hi, el_lo, el_hi = self.fan_extent_rad
+            d = p - tx_c
+            if view is not None:
+                d = d @ view.rotation
+            r = np.maximum(np.linalg.norm(d, axis=1), 1e-9)
+            el = np.arcsin(np.clip(d[:, 1] / r, -1.0, 1.0))
+            az = np.arctan2(d[:, 0], d[:, 2])
+            lit = (el >= el_lo) & (el <= el_hi) & (az >= az_lo) & (az <= az_hi)
+            lit[t_tgt[t_nb > 0]] = True
+            rx_targets = np.flatnonzero(lit)
+        r_tgt, r_pt, r_c, r_nb, r_rate = self._legs(rx_c, p, order, vel, v_s,
+                                                    curved_targets=rx_targets)
         # join the legs on the target: every transmit leg with every receive leg
         o = np.argsort(r_tgt, kind="stable")
         r_tgt, r_pt, r_c, r_nb, r_rate = r_tgt[o], r_pt[o], r_c[o], r_nb[o], r_rate[o]
@@ -550,5 +583,12 @@ def build_ray_scene(scene, sonar, medium, pose=None) -> RayScene | None:
             if pl is not None:
                 planes[i] = pl
     rx = sonar.receiver.elements
+    fan = None
+    level = getattr(scene.effects.specular, "beam_level_db", None)
+    if level is not None:
+        kw = dict(medium=medium, frequency_hz=scene.signal.center_frequency_hz)
+        fan = (*illuminated_extent(sonar.transmitter, plane="azimuth", level_db=level, **kw),
+               *illuminated_extent(sonar.transmitter, plane="elevation", level_db=level, **kw))
     return RayScene(meshes, caster, sonar.transmitter.phase_center_m, rx.phase_center_m, planes,
-                    medium, scene.signal.center_frequency_hz, specular=scene.effects.specular)
+                    medium, scene.signal.center_frequency_hz, specular=scene.effects.specular,
+                    fan_extent_rad=fan)
