@@ -111,7 +111,7 @@ class RayScene:
         self.meshes = [sm.at_time(sm.spec.mesh.time_offset_s + time_s) if sm.moving else sm
                        for sm in self.meshes]
         counts = self.caster.rays_cast
-        self.caster = RayCaster(self.meshes, threads=self.caster.threads)
+        self.caster = RayCaster(self.meshes, threads=self.caster.threads, previous=self.caster)
         self.caster.rays_cast = counts
         self._reverb_rays = None
         self._mesh_target_scatterers = None
