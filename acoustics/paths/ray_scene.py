@@ -95,6 +95,9 @@ class RayScene:
     fan_extent_rad: tuple | None = None
     """(az_lo, az_hi, el_lo, el_hi) (rad) of the transmitter's principal cuts above
     ``effects.specular.beam_level_db`` in the sonar frame; None: specular search everywhere."""
+    rx_fan_extent_rad: tuple | None = None
+    """The same for one receiver element (a receive leg's bounce point outside it reaches the
+    element below the level)."""
 
     # ------------------------------------------------------------------- the sea
     @property
@@ -305,7 +308,7 @@ class RayScene:
         return self._normal_cache[key]
 
     def specular_legs(self, start, ends, velocities=None, start_velocity=None, *,
-                      fan_view=False, view=None):
+                      window_extent=None, view=None):
         """One-bounce legs from ``start`` to each of ``ends`` off every curved boundary.
 
         Parameters
@@ -341,8 +344,8 @@ class RayScene:
                 t_sea = sm.time_s
                 exact = (lambda x, y, _s=sm.surface, _t=t_sea: _s.height(x, y, _t), sm.placement)
             window = None
-            if fan_view and self.fan_extent_rad is not None:
-                window = (start, np.eye(3) if view is None else view.rotation, self.fan_extent_rad)
+            if window_extent is not None:   # a fan: only blocks it reaches, seen from start
+                window = (start, np.eye(3) if view is None else view.rotation, window_extent)
             sp = specular_points(sm.mesh.vertices, sm.mesh.faces, self._normals(i),
                                  np.broadcast_to(start, ends.shape), ends,
                                  newton_iterations=spec.newton_iterations,
@@ -392,7 +395,7 @@ class RayScene:
             out += b[:, 2] * sm.surface.vertical_velocity(own[:, 0], own[:, 1], sm.time_s)
         return out
 
-    def _legs(self, start, p, order, velocities=None, start_velocity=None, *, fan_view=False,
+    def _legs(self, start, p, order, velocities=None, start_velocity=None, *, window_extent=None,
               view=None, curved_targets=None):
         """Every leg from ``start`` to the targets ``p``: direct, plane images up to ``order``
         bounces, one bounce off each curved boundary; as flat rows (target, point, Π R, bounces,
@@ -431,7 +434,7 @@ class RayScene:
             if sub.size:
                 t, im, c, r = self.specular_legs(start, p[sub], None if velocities is None
                                                  else velocities[sub], start_velocity,
-                                                 fan_view=fan_view, view=view)
+                                                 window_extent=window_extent, view=view)
                 rows.append((sub[t], im, c, np.ones(t.size, int), r))
         return tuple(np.concatenate(col) for col in zip(*rows))
 
@@ -475,8 +478,8 @@ class RayScene:
             v_s = None if v_s is None else rot @ v_s
         tx_c, rx_c = self.centers(view)
         fan = self.fan_extent_rad is not None
-        t_tgt, t_pt, t_c, t_nb, t_rate = self._legs(tx_c, p, order, vel, v_s, fan_view=fan,
-                                                    view=view)
+        t_tgt, t_pt, t_c, t_nb, t_rate = self._legs(tx_c, p, order, vel, v_s, view=view,
+                                                    window_extent=self.fan_extent_rad)
         rx_targets = None
         if fan:
             # a receive leg's bounce pairs with every transmit leg of its target: only targets
@@ -491,7 +494,8 @@ class RayScene:
             lit = (el >= el_lo) & (el <= el_hi) & (az >= az_lo) & (az <= az_hi)
             lit[t_tgt[t_nb > 0]] = True
             rx_targets = np.flatnonzero(lit)
-        r_tgt, r_pt, r_c, r_nb, r_rate = self._legs(rx_c, p, order, vel, v_s,
+        r_tgt, r_pt, r_c, r_nb, r_rate = self._legs(rx_c, p, order, vel, v_s, view=view,
+                                                    window_extent=self.rx_fan_extent_rad,
                                                     curved_targets=rx_targets)
         # join the legs on the target: every transmit leg with every receive leg
         o = np.argsort(r_tgt, kind="stable")
@@ -583,12 +587,15 @@ def build_ray_scene(scene, sonar, medium, pose=None) -> RayScene | None:
             if pl is not None:
                 planes[i] = pl
     rx = sonar.receiver.elements
-    fan = None
+    fan = rx_fan = None
     level = getattr(scene.effects.specular, "beam_level_db", None)
     if level is not None:
         kw = dict(medium=medium, frequency_hz=scene.signal.center_frequency_hz)
         fan = (*illuminated_extent(sonar.transmitter, plane="azimuth", level_db=level, **kw),
                *illuminated_extent(sonar.transmitter, plane="elevation", level_db=level, **kw))
+        one = rx.subset([0])
+        rx_fan = (*illuminated_extent(one, plane="azimuth", level_db=level, **kw),
+                  *illuminated_extent(one, plane="elevation", level_db=level, **kw))
     return RayScene(meshes, caster, sonar.transmitter.phase_center_m, rx.phase_center_m, planes,
                     medium, scene.signal.center_frequency_hz, specular=scene.effects.specular,
-                    fan_extent_rad=fan)
+                    fan_extent_rad=fan, rx_fan_extent_rad=rx_fan)

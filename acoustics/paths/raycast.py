@@ -134,8 +134,9 @@ class RayCaster:
         self.meshes = list(meshes)
         if not self.meshes:
             raise ValueError("a ray caster needs at least one mesh")
-        verts, faces, owner = [], [], []
+        verts, faces, owner, normal, v0 = [], [], [], [], []
         offset = 0
+        self._per_mesh = {}
         for i, sm in enumerate(self.meshes):
             v = np.asarray(sm.mesh.vertices, float)
             f = np.asarray(sm.mesh.faces, np.int64)
@@ -143,17 +144,26 @@ class RayCaster:
             faces.append(f + offset)
             owner.append(np.full(len(f), i))
             offset += len(v)
+            # a mesh's face normals and first vertices, kept from the previous caster when the
+            # mesh is the same object (a still floor under a moving sea)
+            kept = None if previous is None else previous._per_mesh.get(id(sm))
+            if kept is None or kept[0] is not sm:
+                tri = v[f]
+                n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+                norm = np.linalg.norm(n, axis=1)
+                kept = (sm, n / np.where(norm > 0, norm, 1.0)[:, None], tri[:, 0].copy())
+            self._per_mesh[id(sm)] = kept
+            normal.append(kept[1])
+            v0.append(kept[2])
         self.vertices = np.concatenate(verts)
         self.faces = np.concatenate(faces)
         self.face_mesh = np.concatenate(owner)
-        tri = self.vertices[self.faces]
-        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        norm = np.linalg.norm(n, axis=1)
-        self.face_normal = n / np.where(norm > 0, norm, 1.0)[:, None]
-        self.face_v0 = tri[:, 0].copy()
+        self.face_normal = np.concatenate(normal)
+        self.face_v0 = np.concatenate(v0)
         # rows n, n·v0: one cache line per hit when refining
-        self.face_plane = np.ascontiguousarray(np.column_stack(
-            [self.face_normal, np.einsum("ij,ij->i", self.face_normal, self.face_v0)]))
+        self.face_plane = np.empty((self.faces.shape[0], 4))
+        self.face_plane[:, :3] = self.face_normal
+        self.face_plane[:, 3] = np.einsum("ij,ij->i", self.face_normal, self.face_v0)
         self.extent_m = float(np.max(np.abs(self.vertices))) if len(self.vertices) else 1.0
         self.eps_m = max(64 * np.spacing(np.float32(max(self.extent_m, 1.0))).item(), 1e-7)
         self.threads = threads or os.cpu_count() or 1
@@ -177,10 +187,15 @@ class RayCaster:
         """(Embree scene, global face index of each of its faces, its meshes, still) for the
         meshes ``mesh_idx``."""
         faces = np.flatnonzero(np.isin(self.face_mesh, mesh_idx))
-        used, local = np.unique(self.faces[faces], return_inverse=True)
+        verts, local, offset = [], [], 0
+        for i in mesh_idx:      # each mesh's own vertices, its faces offset within the part
+            m = self.meshes[i].mesh
+            verts.append(np.asarray(m.vertices, np.float32))
+            local.append(np.asarray(m.faces, np.int64) + offset)
+            offset += len(m.vertices)
         scene = rtcore_scene.EmbreeScene(robust=robust)
-        TriangleMesh(scene=scene, vertices=self.vertices[used].astype(np.float32),
-                     indices=local.reshape(-1, 3).astype(np.int32))
+        TriangleMesh(scene=scene, vertices=np.concatenate(verts),
+                     indices=np.concatenate(local).astype(np.int32))
         return scene, faces.astype(np.int32), [self.meshes[i] for i in mesh_idx], still
 
     def _still_part(self, meshes, mesh_idx):
