@@ -217,32 +217,81 @@ def spread_bank(model, positions_m, strength, weights, shift_s, *, table, t0_s, 
 
 
 def synthesize_bank(model, p, q, fd, pulse, fs, n, t0, taps, up, prx, error_db, table_fn,
-                    fast_len):
-    """Complex baseband samples (N_rx, n) of Doppler-shifted scatterers through the bank."""
+                    fast_len, every_up_th):
+    """Complex baseband samples (N_rx, n) of every scatterer, the shifted ones (fd ≠ 0)
+    through the bank, the others through the plain replica, all under one inverse FFT.
+
+    The bank's trains cover only the stretch of the record its echoes can reach (the two legs'
+    lengths from the sonar's origin, ± the arrays' reach, the shifts and the kernel) when that
+    is less than half the record: a school's echoes need not pay for the whole record's FFTs.
+    """
     fine = fs * up
-    nodes = bank_nodes(pulse, fine, fd, error_db)
+    moving = np.flatnonzero(fd != 0)
+    still = np.flatnonzero(fd == 0)
+    fm = fd[moving]
+    nodes = bank_nodes(pulse, fine, fm, error_db)
     reps, pre = bank_replicas(pulse, fine, nodes)
     m = reps.shape[1]
     g = _coupling(pulse)
-    shift = fd * g + pre
+    shift = fm * g + pre
     # room for an echo that starts up to a replica plus its shift before sample 0
-    lead = m + taps + int(np.ceil((pre + float(np.max(np.abs(fd))) * abs(g)) * fine)) + 1
+    lead = m + taps + int(np.ceil((pre + float(np.max(np.abs(fm))) * abs(g)) * fine)) + 1
     q0 = up * -(-lead // up)
     n_out = q0 + up * n + taps
     widest = float(np.max(np.abs(nodes)))
     band = min(pulse.bandwidth_hz + 4.0 / pulse.duration_s + 2.0 * widest, 0.98 * fine)
     table = table_fn(int(taps), (fine - band) / fine)
     nfft = fast_len(n_out + m - 1, up)
-    T = pulse.duration_s
-    w = bank_weights(fd, nodes) * (np.exp(1j * np.pi * fd * T) * np.exp(-1j * np.pi * fd * fd * g))[:, None]
-    trains = spread_bank(model, p, q, w, shift, table=table, t0_s=t0, rate_hz=fine, q0=q0,
-                         n_out=n_out, receive_positions_m=prx, length=nfft)
+    n_rx = model.receiver.n_elements
     spec = None
-    for j in range(nodes.size):
-        part = sfft.fft(trains[j], axis=1, workers=-1, overwrite_x=True)
-        part *= sfft.fft(reps[j], nfft)
-        if spec is None:
-            spec = part
+    if still.size:
+        from acoustics.synthesis.arrivals import spread_arrivals
+        # the plain replica on the bank's time axis (it starts ``pre`` after the bank's)
+        rep0 = pulse.envelope(np.arange(m) / fine - pre)
+        delta = spread_arrivals(model, p[still], q[still], table=table, t0_s=t0 + pre,
+                                rate_hz=fine, q0=q0, n_out=n_out,
+                                receive_positions_m=None if prx is None else prx[still],
+                                length=nfft)
+        spec = sfft.fft(delta, axis=1, workers=-1, overwrite_x=True)
+        spec *= sfft.fft(rep0, nfft)
+    T = pulse.duration_s
+    w = bank_weights(fm, nodes) * (np.exp(1j * np.pi * fm * T) * np.exp(-1j * np.pi * fm * fm * g))[:, None]
+    pm, qm = p[moving], q[moving]
+    rm = None if prx is None else prx[moving]
+    # the stretch of the fine grid the shifted echoes can touch
+    c = model.medium.sound_speed_m_s
+    reach = max(float(np.max(np.linalg.norm(model.receiver.center_m, axis=1))),
+                float(np.linalg.norm(model.transmitter.phase_center_m)))
+    path = np.linalg.norm(pm, axis=1) + np.linalg.norm(pm if rm is None else rm, axis=1)
+    g_lo = max(0, int(np.floor(((path.min() - 2 * reach) / c - shift.max() - t0) * fine + q0)) - taps - 2)
+    g_hi = min(n_out, int(np.ceil(((path.max() + 2 * reach) / c - shift.min() - t0) * fine + q0)) + taps + 2)
+    span = g_hi - g_lo
+    late = None
+    if span > 0:
+        short = 2 * (span + m) < nfft
+        nf = sfft.next_fast_len(span + m - 1) if short else nfft
+        trains = spread_bank(model, pm, qm, w, shift, table=table,
+                             t0_s=t0 + (g_lo - q0) / fine if short else t0, rate_hz=fine,
+                             q0=0 if short else q0, n_out=span if short else n_out,
+                             receive_positions_m=rm, length=nf)
+        part = None
+        for j in range(nodes.size):
+            f_j = sfft.fft(trains[j], axis=1, workers=-1, overwrite_x=True)
+            f_j *= sfft.fft(reps[j], nf)
+            if part is None:
+                part = f_j
+            else:
+                part += f_j
+        if not short:
+            spec = part if spec is None else spec + part
         else:
-            spec += part
-    return spec, q0
+            y = sfft.ifft(part, axis=1, workers=-1, overwrite_x=True)[:, :span + m - 1]
+            acc = np.zeros((n_rx, nfft), complex)
+            acc[:, g_lo:g_lo + span + m - 1] = y
+            late = acc[:, q0:q0 + up * n:up]
+    out = every_up_th(spec, up, q0, n) if spec is not None else None
+    if late is not None:
+        out = late if out is None else out + late
+    if out is None:
+        return np.zeros((n_rx, n), complex)
+    return out

@@ -197,24 +197,22 @@ def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz
 
 
 def _fast_bank(model, p, q, pulse, fs, n, t0, taps, up, prx, fd, error_db):
-    """Still scatterers through the plain fast synthesis, shifted ones through the bank."""
+    """Still scatterers through the plain replica, shifted ones through the bank, under one
+    inverse FFT (acoustics/synthesis/doppler_bank.py)."""
     from acoustics.synthesis.doppler_bank import bank_nodes, synthesize_bank
     moving = np.flatnonzero(fd != 0)
-    still = np.flatnonzero(fd == 0)
-    out = None
-    if still.size:
-        out = _fast(model, p, q, pulse, fs, n, t0, taps, up, prx,
-                    groups=[(0.0, still, np.ones(still.size))])
-    fm = fd[moving]
-    n_nodes = bank_nodes(pulse, fs * up, fm, error_db).size
-    pm, qm, rm = p[moving], q[moving], None if prx is None else prx[moving]
+    n_nodes = bank_nodes(pulse, fs * up, fd[moving], error_db).size
     if moving.size < _EXACT_PER_BIN * n_nodes:
-        part = _exact(model, pm, qm, pulse, fs, n, t0, rm, fm)   # a few: exact is cheaper
-    else:
-        spec, q0 = synthesize_bank(model, pm, qm, fm, pulse, fs, n, t0, taps, up, rm, error_db,
-                                   fractional_delay_table, _even_fast_len)
-        part = _every_up_th(spec, up, q0, n)
-    return part if out is None else out + part
+        # a few shifted echoes: each exactly is cheaper (and the reference)
+        still = np.flatnonzero(fd == 0)
+        part = _exact(model, p[moving], q[moving], pulse, fs, n, t0,
+                      None if prx is None else prx[moving], fd[moving])
+        if not still.size:
+            return part
+        return part + _fast(model, p, q, pulse, fs, n, t0, taps, up, prx,
+                            groups=[(0.0, still, np.ones(still.size))])
+    return synthesize_bank(model, p, q, fd, pulse, fs, n, t0, taps, up, prx, error_db,
+                           fractional_delay_table, _even_fast_len, _every_up_th)
 
 
 def _exact(model, p, q, pulse, fs, n, t0, prx=None, fd=None):
