@@ -915,7 +915,9 @@ def hard_survey():
 
     def cell(r, k):
         return f"{r['stages_s'][k] / r['pings'] * 1e3:.1f}" if k in r["stages_s"] else "—"
-    rows = [[f"`{k}`", *(cell(r, k) for r in cols)] for k in names]
+    once = ("setup", "rays_build", "dataset")
+    rows = [[f"`{k}`" + (" (once per run, over the column's pings)" if k in once else ""),
+             *(cell(r, k) for r in cols)] for k in names]
     rows.append(["**the ping's stages (all but setup, rays_build, dataset)**",
                  f"**{b_ping * 1e3:.1f}**", f"**{f_ping * 1e3:.1f}**", f"**{n_ping * 1e3:.1f}**"])
     rows.append(["wall time of `simulate` per ping (setup and dataset included)",
