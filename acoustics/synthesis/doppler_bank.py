@@ -32,7 +32,11 @@ import numba as nb
 import numpy as np
 import scipy.fft as sfft
 
-from acoustics.synthesis.arrivals import _BLOCK, _add_taps, _kernel_inputs, _pair, _pair_block
+from acoustics.synthesis.arrivals import BLOCK as _BLOCK
+from acoustics.synthesis.arrivals import add_taps as _add_taps
+from acoustics.synthesis.arrivals import kernel_inputs as _kernel_inputs
+from acoustics.synthesis.arrivals import pair as _pair
+from acoustics.synthesis.arrivals import pair_block as _pair_block
 
 __all__ = ["bank_nodes", "bank_error_db", "bank_weights", "bank_replicas", "spread_bank",
            "MAX_NODES"]
@@ -146,7 +150,7 @@ def _spread_bank(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv
     n_s, n_r = px.shape[0], c.shape[0]
     n_g = wre.shape[1]
     half = table.shape[1] // 2
-    out = np.zeros((n_g, n_r, n_alloc, 2))
+    out = np.zeros((n_g, n_r, n_alloc), np.complex128)
     lo = float(half)
     hi = float(n_out - half)
     for n in nb.prange(n_r):
@@ -213,7 +217,7 @@ def spread_bank(model, positions_m, strength, weights, shift_s, *, table, t0_s, 
                        np.ascontiguousarray(w.imag), np.ascontiguousarray(table),
                        np.ascontiguousarray(np.diff(table, axis=0)), float(t0_s), float(rate_hz),
                        float(q0), int(n_out), length)
-    return out.view(np.complex128)[..., 0]
+    return out
 
 
 def synthesize_bank(model, p, q, fd, pulse, fs, n, t0, taps, up, prx, error_db, table_fn,
