@@ -210,7 +210,7 @@ def _add_taps(row, ar, ai, tau, t0, fs, q0, table, dtable, lo, hi):
     base = m0 - taps // 2 + 1
     a = complex(ar, ai)
     # one complex add per tap (re and im in one 16-byte load and store): the same products as
-    # two real adds, about a fifth faster
+    # two real adds
     for j in range(taps):
         row[base + j] += a * (table[i, j] + w * dtable[i, j])
 
@@ -231,19 +231,24 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
     out = np.zeros((n_r, n_alloc), np.complex128)
     lo = float(half)
     hi = float(n_out - half)
+    if use_d:  # huygens: directivities given, scalar path
+        for n in nb.prange(n_r):
+            row = out[n]
+            for s in range(n_s):
+                d = d_in[s, n]
+                tau, ar, ai = _pair(px[s], py[s], pz[s], fre[s], fim[s], r1[s], c[n, 0], c[n, 1],
+                                    c[n, 2], ex[n, 0], ex[n, 1], ey[n, 0], ey[n, 1], hkw[n],
+                                    hkh[n], d.real, d.imag, True, inv_c, inv_lam, alpha,
+                                    small_abs, spreading, baffle)
+                _add_taps(row, ar, ai, tau, t0, fs, q0, table, dtable, lo, hi)
+        return out
+    # the far-field loop on its own (a branch between the two inside one parallel loop costs
+    # a fifth of the time: the same sums, in the same order)
     for n in nb.prange(n_r):
         row = out[n]
         cx, cy, cz = c[n, 0], c[n, 1], c[n, 2]
         ex0, ex1, ey0, ey1 = ex[n, 0], ex[n, 1], ey[n, 0], ey[n, 1]
         kw, kh = hkw[n], hkh[n]
-        if use_d:  # huygens: directivities given, scalar path
-            for s in range(n_s):
-                d = d_in[s, n]
-                tau, ar, ai = _pair(px[s], py[s], pz[s], fre[s], fim[s], r1[s], cx, cy, cz, ex0,
-                                    ex1, ey0, ey1, kw, kh, d.real, d.imag, True, inv_c, inv_lam,
-                                    alpha, small_abs, spreading, baffle)
-                _add_taps(row, ar, ai, tau, t0, fs, q0, table, dtable, lo, hi)
-            continue
         buf = np.empty(3 * _BLOCK)
         for s0 in range(0, n_s, _BLOCK):
             s1 = min(s0 + _BLOCK, n_s)

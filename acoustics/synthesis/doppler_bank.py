@@ -153,6 +153,21 @@ def _spread_bank(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv
     out = np.zeros((n_g, n_r, n_alloc), np.complex128)
     lo = float(half)
     hi = float(n_out - half)
+    if use_d:  # huygens: directivities given, scalar path
+        for n in nb.prange(n_r):
+            for s in range(n_s):
+                d = d_in[s, n]
+                tau, ar, ai = _pair(px[s], py[s], pz[s], fre[s], fim[s], r1[s], c[n, 0], c[n, 1],
+                                    c[n, 2], ex[n, 0], ex[n, 1], ey[n, 0], ey[n, 1], hkw[n],
+                                    hkh[n], d.real, d.imag, True, inv_c, inv_lam, alpha,
+                                    small_abs, spreading, baffle)
+                tau -= shift[s]
+                for j in range(n_g):
+                    _add_taps(out[j, n], ar * wre[s, j] - ai * wim[s, j],
+                              ar * wim[s, j] + ai * wre[s, j], tau, t0, fs, q0, table, dtable,
+                              lo, hi)
+        return out
+    # the far-field loop on its own: a branch inside the parallel loop slows it (as _spread)
     for n in nb.prange(n_r):
         cx, cy, cz = c[n, 0], c[n, 1], c[n, 2]
         ex0, ex1, ey0, ey1 = ex[n, 0], ex[n, 1], ey[n, 0], ey[n, 1]
@@ -160,20 +175,9 @@ def _spread_bank(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv
         buf = np.empty(3 * _BLOCK)
         for s0 in range(0, n_s, _BLOCK):
             s1 = min(s0 + _BLOCK, n_s)
-            if use_d:
-                for i in range(s1 - s0):
-                    s = s0 + i
-                    d = d_in[s, n]
-                    tau, ar, ai = _pair(px[s], py[s], pz[s], fre[s], fim[s], r1[s], cx, cy, cz,
-                                        ex0, ex1, ey0, ey1, kw, kh, d.real, d.imag, True, inv_c,
-                                        inv_lam, alpha, small_abs, spreading, baffle)
-                    buf[i] = ar
-                    buf[_BLOCK + i] = ai
-                    buf[2 * _BLOCK + i] = tau
-            else:
-                _pair_block(px[s0:s1], py[s0:s1], pz[s0:s1], fre[s0:s1], fim[s0:s1], r1[s0:s1],
-                            cx, cy, cz, ex0, ex1, ey0, ey1, kw, kh, inv_c, inv_lam, alpha,
-                            small_abs, spreading, baffle, buf)
+            _pair_block(px[s0:s1], py[s0:s1], pz[s0:s1], fre[s0:s1], fim[s0:s1], r1[s0:s1],
+                        cx, cy, cz, ex0, ex1, ey0, ey1, kw, kh, inv_c, inv_lam, alpha,
+                        small_abs, spreading, baffle, buf)
             for i in range(s1 - s0):
                 s = s0 + i
                 ar, ai = buf[i], buf[_BLOCK + i]
