@@ -56,14 +56,26 @@ def derived_in_sweep_units(ds: xr.Dataset):
     return t / mu * (det.get("thesis_noise_mean", 139.8) if units == "thesis" else 1.0)
 
 
+def threshold_units(ds: xr.Dataset):
+    """The one unit every threshold of the report is given in: the scene's ``value_units``
+    (those of a threshold sweep), as (units, noise mean in those units, axis label). ``counts``:
+    ADC counts (the noise mean is then None: it varies with the noise); ``noise_mean``:
+    multiples of the noise mean μ̂; ``thesis``: the thesis' image units, in which μ̂ reads
+    ``thesis_noise_mean`` (139.8, Table 6.5)."""
+    settings = json.loads(ds.attrs["settings_json"])
+    det = settings[-1]["detect"]         # a threshold sweep's (the scene's own otherwise)
+    units = det.get("value_units", "counts")
+    mu = {"counts": None, "noise_mean": 1.0, "thesis": float(det.get("thesis_noise_mean", 139.8))}[units]
+    label = {"counts": "threshold T (ADC counts)",
+             "noise_mean": "threshold T (multiples of the noise mean μ̂)",
+             "thesis": f"threshold T (thesis image units: the noise mean μ̂ = {mu or 0:g})"}[units]
+    return units, mu, label
+
+
 def _sweep_axis_label(ds: xr.Dataset) -> str:
     key = ds.attrs.get("sweep_key", "")
     if key == "threshold":
-        settings = json.loads(ds.attrs["settings_json"])
-        units = settings[-1]["detect"].get("value_units", "counts")
-        return {"counts": "threshold T (ADC counts)",
-                "noise_mean": "threshold T (multiples of the noise mean μ)",
-                "thesis": "threshold T (thesis image units, μ = 139.8)"}[units]
+        return threshold_units(ds)[2]
     return f"{ds.attrs.get('sweep_path', key)} (scene units: SI, see the scene file)"
 
 
@@ -142,26 +154,38 @@ def report_figures(ds: xr.Dataset, outdir) -> list[tuple[str, Path, str]]:
                      f"Before: {np.mean(eb):+.2f} ± {np.std(eb):.2f}; after: {np.mean(ea):+.2f} ± "
                      f"{np.std(ea):.2f} targets per ping (mean ± standard deviation)."))
         plt.close(fig)
-    # noise PDF
+    # noise PDF, in the unit the thresholds are given in
     hist = ds["noise_histogram"].values.sum(axis=0)
     if hist.sum() > 0:
-        edges = ds["noise_bin_edge"].values
+        edges = ds["noise_bin_edge"].values          # in units of each ping's own σ̂
         sig = float(np.nanmean(base["noise_sigma_counts"]))
-        x = 0.5 * (edges[1:] + edges[:-1]) * sig
-        width = np.diff(edges) * sig
+        units, mu_units, _ = threshold_units(ds)
+        # σ̂ in the report's threshold unit: counts, or the noise mean μ̂ = σ̂ √(π/2) read as mu_units
+        scale = sig if mu_units is None else mu_units / rayleigh_mean(1.0)
+        unit_name = {"counts": "ADC counts", "noise_mean": "multiples of μ̂",
+                     "thesis": "thesis image units"}[units]
+        x = 0.5 * (edges[1:] + edges[:-1]) * scale
+        width = np.diff(edges) * scale
         pdf = hist / (hist.sum() * width)
         fig, ax = plt.subplots(figsize=(7, 4))
         ax.bar(x, pdf, width=width, color="0.75", label="noise cells")
-        xx = np.linspace(0, edges[-1] * sig, 400)
-        ax.plot(xx, xx / sig**2 * np.exp(-xx**2 / (2 * sig**2)), "r-",
-                label=f"Rayleigh, σ = {sig:.2f} counts (μ = {rayleigh_mean(sig):.2f})")
-        ax.set_xlabel("|I| in the noise cells (ADC counts)")
-        ax.set_ylabel("probability density (1/count)")
+        xx = np.linspace(0, edges[-1] * scale, 400)
+        ax.plot(xx, xx / scale**2 * np.exp(-xx**2 / (2 * scale**2)), "r-",
+                label=f"Rayleigh, σ = {sig:.4g} ADC counts (μ = {rayleigh_mean(sig):.4g})")
+        t_counts = float(np.nanmedian(base["threshold_counts"]))
+        sig_med = float(np.nanmedian(base["noise_sigma_counts"]))
+        if np.isfinite(t_counts) and sig_med > 0:
+            # as the summary and the sweep convert it: with the median σ̂ of the pings
+            t = t_counts if mu_units is None else t_counts / rayleigh_mean(sig_med) * mu_units
+            ax.axvline(t, color="tab:red", ls="--", label=f"the scene's threshold ({t:.4g})")
+        ax.set_xlabel(f"|I| in the noise cells ({unit_name})")
+        ax.set_ylabel(f"probability density (1 / {unit_name})")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
         figs.append(("Noise PDF (thesis Fig. 6.13)", save(fig, outdir / "noise_pdf.png"),
                      f"{int(hist.sum()):,} noise cells (native range samples) of all pings, each "
-                     "ping normalised by its own σ̂, against the Rayleigh law."))
+                     f"ping normalised by its own σ̂, against the Rayleigh law; |I| in {unit_name}, "
+                     "the unit of every threshold in this report."))
         plt.close(fig)
     # mean error vs sweep
     if ds.sizes["setting"] > 1:
@@ -268,8 +292,16 @@ def write_report(ds: xr.Dataset, out_dir) -> Path:
     base = ds.isel(setting=0)
     has_truth = bool(np.isfinite(base["true_in_volume"].values).any())
     summary = [["pings", ds.sizes["ping"]], ["settings (scene + sweep points)", ds.sizes["setting"]]]
-    summary.append(["threshold of the scene's setting (median, ADC counts)",
-                    f"{float(np.nanmedian(base['threshold_counts'])):.3f}"])
+    units, mu_units, _ = threshold_units(ds)
+    t_counts = float(np.nanmedian(base["threshold_counts"]))
+    sig_med = float(np.nanmedian(base["noise_sigma_counts"])) if np.isfinite(base["noise_sigma_counts"]).any() else np.nan
+    if mu_units is None or not sig_med > 0:
+        summary.append(["threshold of the scene's setting (median, ADC counts)", f"{t_counts:.4g}"])
+    else:
+        t = t_counts / rayleigh_mean(sig_med) * mu_units
+        name = {"noise_mean": "multiples of μ̂", "thesis": "thesis image units"}[units]
+        summary.append([f"threshold of the scene's setting (median, {name}; ADC counts)",
+                        f"{t:.4g} ({t_counts:.4g} ADC counts)"])
     if np.isfinite(base["noise_sigma_counts"]).any():
         sig = float(np.nanmedian(base["noise_sigma_counts"]))
         summary.append(["noise σ̂ / μ̂ (ADC counts)", f"{sig:.3f} / {rayleigh_mean(sig):.3f}"])

@@ -113,7 +113,8 @@ def assemble_results(*, labels, values, pings, tasks, parts: Path, attrs: dict,
     -------
     xarray.Dataset
         Per-ping numbers (setting, ping), the noise histogram (ping, noise_bin), task times,
-        and per-setting means, standard deviations and the TS estimate.
+        and per-setting means, standard deviations, the nMAE of the per-ping counts before and
+        after interferometry (``count_nmae_before``, ``count_nmae_after``) and the TS estimate.
     """
     n_set, n_p = len(labels), len(pings)
     col = {p: i for i, p in enumerate(pings)}
@@ -156,6 +157,21 @@ def assemble_results(*, labels, values, pings, tasks, parts: Path, attrs: dict,
               "density_per_m3", "true_density_per_m3", "threshold_counts"):
         ds[f"{k}_mean"] = ds[k].mean("ping")
         ds[f"{k}_std"] = ds[k].std("ping")
+    # nMAE of the per-ping counts (Kay et al. 2022): Σ|count − true| / Σ true over the pings, so
+    # over- and under-counts of single pings do not cancel as they do in the mean error. The
+    # tracking scores (MOTA, IDF1, HOTA, nMAE of track counts) need a run of consecutive pings,
+    # not the independent pings an experiment's tasks are: `abacus track --json` gives them
+    from processing.tracking.hota import nmae
+    for when in ("before", "after"):
+        c, t = ds[f"count_{when}"].values, ds["true_in_volume"].values
+        vals = []
+        for i in range(n_set):
+            ok = np.isfinite(c[i]) & np.isfinite(t[i])
+            vals.append(nmae(c[i][ok], t[i][ok]) if ok.any() else np.nan)
+        ds[f"count_nmae_{when}"] = xr.DataArray(np.array(vals, float), dims="setting", attrs={
+            "long_name": f"nMAE of the per-ping counts {when} interferometry: "
+                         "sum |count - true| / sum true over the pings", "units": "1",
+                         "nan_means": "no truth, or no fish in the volume in any ping"})
     with np.errstate(divide="ignore", invalid="ignore"):
         sv, dens = ds["s_v_per_m"].sum("ping", skipna=True), ds["density_per_m3"].sum("ping")
         ds["ts_estimate_db"] = 10 * np.log10(xr.where(dens > 0, sv / dens, np.nan).where(sv > 0))

@@ -19,6 +19,9 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
+#: the run as SONAR-netCDF4 2.0 (``abacus run --format sonar-netcdf4-2``)
+SONAR_NETCDF2_FILE = "run.sonar-netcdf4-2.nc"
+
 __all__ = ["run", "RunResult", "default_run_folder", "run_notes"]
 
 
@@ -54,7 +57,7 @@ class RunResult:
 
 def run(scene, output=None, *, pings: int | None = None, plots: bool = True, images: str = "none",
         overwrite: bool = False, max_memory_gb: float | None = None, drawing=None, progress=None,
-        announce=None, started_s: float | None = None) -> RunResult:
+        announce=None, started_s: float | None = None, sonar_netcdf2: bool = False) -> RunResult:
     """Simulate, image, detect, locate and count a scene into a run folder, with its figures.
 
     Parameters
@@ -83,6 +86,9 @@ def run(scene, output=None, *, pings: int | None = None, plots: bool = True, ima
         Told what the run is about to do (the command line prints it).
     started_s : float, optional
         ``time.perf_counter()`` when the caller started (the stage log's "start").
+    sonar_netcdf2 : bool
+        Also write ``run.sonar-netcdf4-2.nc``: the run as SONAR-netCDF4 2.0, with its single
+        targets and gridded Sv (run.nc stays 1.0).
 
     Returns
     -------
@@ -119,6 +125,8 @@ def run(scene, output=None, *, pings: int | None = None, plots: bool = True, ima
     check_scene_resources(scene, SimpleNamespace(max_memory=max_memory_gb), pings=len(chosen) if chosen else None, images=images,
                           output=outdir / "run.nc", figures=plots)
     made = ["run.nc", "detections.csv", "counts.json", "beams.json", "scene.resolved.yaml"]
+    if sonar_netcdf2:
+        made.insert(1, SONAR_NETCDF2_FILE)
     with ExitStack() as stack:
         figures = None
         if plots:
@@ -149,6 +157,9 @@ def run(scene, output=None, *, pings: int | None = None, plots: bool = True, ima
         with log.stage("write"), staged(outdir) as tmp:
             tmp.mkdir()
             write_tree(tree, tmp / "run.nc")
+            if sonar_netcdf2:
+                processing.write_sonar_netcdf2(tree, tmp / SONAR_NETCDF2_FILE, single_targets=True,
+                                               gridded=True)
             processing.write_csv(tree, tmp / "detections.csv")
             write_text_atomic(tmp / "counts.json", json.dumps(result, indent=1))
             write_text_atomic(tmp / "scene.resolved.yaml", scene.resolved_text())
@@ -220,9 +231,12 @@ class _RunFigures:
 
     def images(self, tree):
         """images/: the image figures of the dataset's first ping."""
+        from abacus.figures.calibrated import echogram_calibration
         from abacus.figures.plots import draw_image_figures, image_figure_data
         from processing.records import figure_images
-        self._submit("images", draw_image_figures, image_figure_data(figure_images(tree, [0])))
+        im = figure_images(tree, [0])
+        self._submit("images", draw_image_figures,
+                     image_figure_data(im, calibration=echogram_calibration(tree, im)))
 
     def counts(self, tree):
         """counts/: detections of the first three pings, and counts per ping."""

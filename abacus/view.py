@@ -6,6 +6,7 @@ World frame, z down."""
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +30,31 @@ def _sector(r0, r1, half_az, half_el, n=24):
     p = np.array(pts).reshape(2, 3, n, 3)
     grid.points = p.reshape(-1, 3)
     grid.dimensions = (n, 3, 2)
-    return grid.extract_surface()
+    return grid.extract_surface(**_surface_algorithm(grid))
+
+
+def _surface_algorithm(grid) -> dict:
+    """The surface filter's algorithm named (pyvista ≥ 0.47 warns that its default will change;
+    older releases have no such keyword)."""
+    import inspect
+    return ({"algorithm": "dataset_surface"}
+            if "algorithm" in inspect.signature(grid.extract_surface).parameters else {})
+
+
+def _window_probe_quiet(off_screen: bool):
+    """Where ``off_screen`` and there is no X display (Linux), the making of the render window
+    with VTK's log limited to errors: VTK tries an X window first, logs "bad X server
+    connection" and goes on with EGL (or OSMesa), which is what an off-screen picture wants.
+    Only the window's making is quietened; what VTK logs while drawing is shown. pyvista < 0.45
+    (no ``vtk_verbosity``) logs as VTK does."""
+    import contextlib
+
+    import pyvista as pv
+    headless = off_screen and sys.platform.startswith("linux") and not (
+        os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    if headless and hasattr(pv, "vtk_verbosity"):
+        return pv.vtk_verbosity("error")
+    return contextlib.nullcontext()
 
 
 def _draw_motion(plotter, scene, setup, targets, max_tracks=300):
@@ -78,6 +103,77 @@ def _draw_bounces(plotter, rs, targets, view, built_pose, limit: int = 80):
                        render_points_as_spheres=True, label="bounce points")
 
 
+def _fill_window(plotter, points_w, view_w, *, legend_px=(330, 270), margin_px: int = 80):
+    """Look at ``points_w`` (shape (n, 3), world frame) along ``-view_w`` so that they fill the
+    window but the legend's top-right corner (``legend_px``: width, height): centred in what is
+    left above or beside the legend and zoomed to it less ``margin_px`` on every side (the
+    grid's labels); a scene much wider than tall on
+    screen (a sideways fan along a swell) gets a window as short as it needs instead of a
+    picture half empty."""
+    cam, ren = plotter.camera, plotter.renderer
+    pts = np.asarray(points_w, float)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    lo, hi = pts.min(0), pts.max(0)
+    centre = (lo + hi) / 2
+    size = max(float(np.linalg.norm(hi - lo)), 1.0)
+    cam.focal_point = centre
+    cam.position = centre + 2.5 * size * view_w
+    plotter.reset_camera(bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]))
+
+    def display(p):
+        ren.SetWorldPoint(*p, 1.0)
+        ren.WorldToDisplay()
+        return np.asarray(ren.GetDisplayPoint(), float)
+
+    def projected():
+        """Display (x, y) of every point, shape (n, 2): the camera's projection, vectorised."""
+        w, h = plotter.window_size
+        m = cam.GetCompositeProjectionTransformMatrix(w / h, -1, 1)
+        a = np.array([[m.GetElement(i, j) for j in range(4)] for i in range(4)])
+        q = np.c_[pts, np.ones(len(pts))] @ a.T
+        ndc = q[:, :2] / q[:, 3:4]
+        return (ndc + 1) / 2 * [w, h]
+
+    def world(x, y, depth):
+        ren.SetDisplayPoint(x, y, depth)
+        ren.DisplayToWorld()
+        q = np.asarray(ren.GetWorldPoint(), float)
+        return q[:3] / q[3]
+
+    def move(shift):
+        cam.focal_point = tuple(np.asarray(cam.focal_point) + shift)
+        cam.position = tuple(np.asarray(cam.position) + shift)
+
+    def frame(top, right):
+        """Fit the points into the window less ``top`` pixels above and ``right`` to the right
+        (the legend's); returns their extent on screen (pixels)."""
+        w, h = plotter.window_size
+        aw, ah = w - right, h - top
+        for _ in range(4):                   # perspective: a few rounds settle it
+            xy = projected()
+            (x0, y0), (x1, y1) = xy.min(0), xy.max(0)
+            cam.zoom(min((aw - 2 * margin_px) / max(x1 - x0, 1.0),
+                         (ah - 2 * margin_px) / max(y1 - y0, 1.0)))
+            xy = projected()
+            (x0, y0), (x1, y1) = xy.min(0), xy.max(0)
+            depth = display(cam.focal_point)[2]
+            # the content's centre to the middle of the space the legend leaves
+            move(world((x0 + x1) / 2, (y0 + y1) / 2, depth) - world(aw / 2, ah / 2, depth))
+        xy = projected()
+        return xy.max(0) - xy.min(0)
+
+    # the legend above the picture (a wide scene) or beside it (a tall one): the larger picture
+    w, h = plotter.window_size
+    beside = frame(0, legend_px[0])
+    above = frame(legend_px[1], 0)
+    if beside[0] > above[0]:
+        frame(0, legend_px[0])
+    elif above[1] < 0.7 * (h - legend_px[1] - 2 * margin_px):     # wide and flat: shorter window
+        plotter.window_size = [w, int(max(0.45 * w, legend_px[1] + above[1] + 2 * margin_px))]
+        plotter.ren_win.SetSize(*plotter.window_size)
+        frame(legend_px[1], 0)
+
+
 def _into_built(view, x):
     return np.asarray(x, float) if view is None else view.to_world(np.asarray(x, float)[None])[0]
 
@@ -98,7 +194,8 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     mount = setup.sonar.pose          # meshes are built in the sonar frame at rest
     pose = setup.pose_at(ping)
     to_world = pose.to_world
-    plotter = pv.Plotter(off_screen=off, window_size=list(window_size))
+    with _window_probe_quiet(off):
+        plotter = pv.Plotter(off_screen=off, window_size=list(window_size))
     plotter.set_background("white")
     rs, view = setup.ray_scene_at(scene, pose)
     if rs is not None:
@@ -124,7 +221,8 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
         pts = to_world(arr.center_m * 10)
         plotter.add_points(pts, color=col, point_size=8, render_points_as_spheres=True)
     for axis, col, lab in ((0, "blue", "x_s (azimuth)"), (1, "green", "y_s (elevation)"), (2, "red", "boresight")):
-        plotter.add_mesh(pv.Arrow(origin, pose.rotation[:, axis], scale=2.5), color=col, label=lab)
+        plotter.add_mesh(pv.Arrow(start=origin, direction=pose.rotation[:, axis], scale=2.5),
+                         color=col, label=lab)
     # transmit beam (10 dB wedge) and counting volume
     r_end = setup.counting_range_m[1] * 1.15
     from acoustics.sonar.beams import beamwidth
@@ -154,8 +252,6 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     if rs is not None and len(t) and scene.effects.multipath_order > 0 and rs.curved:
         _draw_bounces(plotter, rs, t, view, mount if view is not None else pose)
     _draw_motion(plotter, scene, setup, t)
-    plotter.add_legend(bcolor="white", size=(0.22, 0.25))
-    plotter.show_grid(xtitle="x forward (m)", ytitle="y starboard (m)", ztitle="z depth (m)")
     # a vertical fan (down-looking sonar) is seen square-on from aft of it and a little above; a
     # horizontal fan (sideways-looking sonar) from its port side at its own depth, so that the
     # surface, the sonar and the targets' depths show; depth always increases down the screen
@@ -178,6 +274,25 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     plotter.camera.focal_point = focus
     plotter.camera.position = focus + 2.9 * span * view_w
     plotter.camera.up = tuple(up)
+    content = [to_world(np.zeros((1, 3))), wedge.points, vol.points]
+    if len(t):
+        content.append(t.position_world_m)
+    if rs is not None:
+        for sm in rs.meshes:      # the boundaries where the beam reaches them
+            v = (mount if view is not None else pose).to_world(sm.mesh.vertices)
+            content.append(v[np.linalg.norm(v - origin, axis=1) <= 1.1 * r_end])
+    content = np.concatenate(content)
+    lo, hi = content.min(0), content.max(0)
+    grid = plotter.show_grid(xtitle="x forward (m)", ytitle="y starboard (m)", ztitle="z depth (m)",
+                             bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]), fmt="%.0f",
+                             n_xlabels=4, n_ylabels=4, n_zlabels=4, location="outer")
+    grid.SetCornerOffset(0.12)     # axes pulled back from their shared corners: no labels overlap
+    # the grid's box and a margin for its labels in the picture
+    box = np.array([[a, b, c] for a in (lo[0], hi[0]) for b in (lo[1], hi[1]) for c in (lo[2], hi[2])])
+    arrows = origin + 2.5 * pose.rotation.T
+    _fill_window(plotter, np.concatenate([content, box, arrows]), view_w)
+    w, h = plotter.window_size
+    plotter.add_legend(bcolor="white", size=(308 / w, 250 / h))       # the same size in pixels
     out = None
     if output is not None:
         out = Path(output)

@@ -6,6 +6,7 @@ import argparse
 import datetime as _dt
 import os
 import platform
+import re
 import sys
 import time
 from pathlib import Path
@@ -78,6 +79,12 @@ class Report:
         for name in self.sections:
             if name in done:
                 body += f"\n<!-- section:{name} -->\n{done[name]}\n<!-- /section -->\n"
+        # sections another script writes into the same file (benchmarks/elevation_precision.py)
+        # are kept as they are, after this script's own
+        if out.exists():
+            for m in re.finditer(r"<!-- section:(\w+) -->\n.*?<!-- /section -->", out.read_text(), re.S):
+                if m.group(1) not in self.sections:
+                    body += f"\n{m.group(0)}\n"
         tmp = out.with_suffix(out.suffix + ".tmp")
         tmp.write_text(body)
         tmp.replace(out)

@@ -208,8 +208,9 @@ def all_variables():
     d_ts = float(ds["ts_estimate_db"][0]) - float(ds["ts_true_db"][0])
     shutil.rmtree(tmp)
     return ("## All variables: the pelagic survey (§6.3.5, Table 6.6, Figs. 6.18–6.21, 6.25)\n\n"
-            "`scenes/default.yaml`: 100 targets in the 215.6 m³ cuboid, bounded-Rayleigh TS, noise "
-            "on; the scene's threshold is derived from the noise in the target-free 13.0–14.6 m "
+            "`scenes/default.yaml`: 100 targets in the 215.6 m³ cuboid, bounded-Rayleigh TS "
+            "(the thesis' amplitudes and noise both scaled by 0.025: its SNR, fish-like TS of −44 "
+            "to −30 dB), noise on; the scene's threshold is derived from the noise in the target-free 13.0–14.6 m "
             "(correct convention, α = 1e-7); fixed 670/700/730 in the thesis' units besides.\n\n"
             + table(["", "thesis", "abacus"], rows)
             + f"\n\nThe counts follow the truth at every threshold, as in the thesis (mean error "
@@ -243,8 +244,8 @@ def threshold():
             "The pelagic survey swept over the thesis' 600–2000 (its image units, T/μ kept), step 50.\n\n"
             + table(["", "thesis", "abacus"], rows)
             + "\n\nThe plateau is there and the derived threshold sits on it, but it ends earlier: "
-              f"above ~{hi:.0f} ({hi / 139.8:.1f} μ) the weakest targets (ρ = 0.25 m at 25 m: ~100 "
-              "counts, 12.5 μ on axis and less off axis) start to drop out and the count falls "
+              f"above ~{hi:.0f} ({hi / 139.8:.1f} μ) the weakest targets (ρ = 0.00625 m, TS −44 dB, "
+              "at 25 m: 12.5 μ on axis and less off axis) start to drop out and the count falls "
               "below the truth. "
               "How far the thesis' plateau reaches depends on how strong its targets were relative "
               "to its noise, which its uncalibrated image units do not let us recover.\n\n"

@@ -397,8 +397,9 @@ def raytraced():
     import tempfile
 
     from abacus.figures.plots import image_figures
+    from processing.records import figure_images
     with tempfile.TemporaryDirectory() as tmp:
-        image_figures(processing.images_of(rt), Path(tmp), ping=0)
+        image_figures(figure_images(rt, [0]), Path(tmp), ping=0, tree=rt)
         shutil.copy(Path(tmp) / "fan_beam.png", ROOT / "docs" / "figures" / "pelagic_floor_rock_fan.png")
 
     return ("## Ray-traced scenes (issue 6)\n\n"
@@ -438,6 +439,12 @@ def raytraced():
 def tracking():
     from tracking import tracking_section
     return tracking_section()
+
+
+@section
+def density():
+    from density import density_section
+    return density_section()
 
 
 if __name__ == "__main__":

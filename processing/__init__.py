@@ -13,7 +13,11 @@ use, so ``import processing`` is cheap)::
     track(tree, settings=None) -> DataTree     # fish tracks across pings, scored against the truth
     sv(tree, settings=None, ...) -> DataTree   # calibrated Sv: MVBS grid and NASC (/Processing/Sv)
     tracks_of(tree) -> xarray.Dataset          # one row per track, and per track point
+    single_targets(tree, settings=None) -> xarray.Dataset  # single-target detection by the echosounder criteria
     open_tree(path), write_tree(tree, path)    # the dataset I/O (atomic writes)
+    open_record(path) -> DataTree              # any recording read and checked (.mat, SONAR-netCDF4 2.0, echopype EK60/EK80, ...)
+    echopype_view(tree) -> DataTree            # the calibrated image in the EK60 convention echopype calibrates
+    write_sonar_netcdf2(tree, path)            # SONAR-netCDF4 2.0 with SingleTarget and gridded Sv
     ProcessingSettings, load_settings(path)
 """
 from __future__ import annotations
@@ -35,7 +39,11 @@ _API = {
     "ProcessingSettings": "processing.settings", "ImageSettings": "processing.settings",
     "load_settings": "processing.settings",
     "track": "processing.tracking.tracks", "tracks_of": "processing.tracking.tracks",
-    "sv": "processing.backscatter.sv", "RecordChain": "processing.pipeline", "as_tree": "processing.base.dataset",
+    "sv": "processing.backscatter.sv", "single_targets": "processing.backscatter.target_table",
+    "write_targets_csv": "processing.backscatter.target_table", "RecordChain": "processing.pipeline",
+    "as_tree": "processing.base.dataset",
+    "open_record": "processing.base.convert", "echopype_view": "processing.backscatter.echopype_view",
+    "write_sonar_netcdf2": "processing.export",
 }
 
 __getattr__, __dir__, __all__ = public_api("processing", _API, globals(), extra=())

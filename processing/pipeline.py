@@ -67,7 +67,20 @@ def resolve_settings(tree: xr.DataTree | None, settings=None) -> ProcessingSetti
             if section is not None:
                 return validate_file(ProcessingSettings, section,
                                      file="/Provenance scene_text (processing section)")
+    if tree is not None and _recorded(tree):
+        # the 13–26 m default is the thesis scene's span, which a recording (a .mat file, a
+        # plain SONAR-netCDF4 file) knows nothing of: its image spans the whole record
+        return ProcessingSettings.model_validate({"image": {"range_m": None}})
     return ProcessingSettings()
+
+
+def _recorded(tree: xr.DataTree) -> bool:
+    """A recording, not a simulation: the root says ``data_kind: recorded``, or no scene made it
+    (no /Provenance scene text)."""
+    if str(tree.attrs.get("data_kind", "")) == "recorded":
+        return True
+    provenance = group_of(tree, PROVENANCE_GROUP)
+    return provenance is None or not provenance.attrs.get("scene_text", "")
 
 
 def noise_band_of(tree) -> float | None:
@@ -356,8 +369,28 @@ class RecordChain:
         return res, {"occupied_range_m": list(layer) if layer is not None else [],
                      "occupied_volume_m3": occupied_m3}
 
+    def _target_strength(self, detected: Detected, *, near_field: bool):
+        """TS_uncomp, TS_comp and the two-way pattern (dB) of every detection (NaN without a
+        calibration or the element geometry)."""
+        from processing.backscatter.calibration import calibration_of
+        from processing.backscatter.target_strength import beam_pattern_of, target_strength_db
+        st, det, n = self.settings, detected.table, detected.n
+        sonar_xyz = np.stack([det[f"{a}_m"] for a in "xyz"], -1).reshape(n, 3)
+        try:     # recorded data may lack a calibration or the element geometry: TS is then NaN
+            cal = calibration_of(self.tree)
+            return target_strength_db(det["amplitude"], det["range_m"], sonar_xyz,
+                                      gain_counts_m=cal.gain_counts_m,
+                                      absorption_db_per_m=cal.absorption_db_per_m,
+                                      pattern=beam_pattern_of(self.tree, st.detect.image_group,
+                                                              st.image.spatial_window),
+                                      near_field=near_field)
+        except DatasetError:
+            return np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+
     def single_targets(self, detected: Detected) -> dict:
-        """Target strength and the single-target verdict of every detection.
+        """Target strength and the tracker's single-target verdict of every detection (the
+        sidelobe rule and ``track.min_ts_db``; the echosounder criteria are
+        :meth:`target_detection`).
 
         Returns
         -------
@@ -366,20 +399,9 @@ class RecordChain:
             beyond the compensable beam), ``beam_pattern_db`` (two-way, dB re axis) and
             ``single_target`` (bool); see :mod:`processing.backscatter.single_targets`.
         """
-        from processing.backscatter.calibration import calibration_of
         from processing.backscatter.single_targets import single_targets
-        from processing.backscatter.target_strength import beam_pattern_of, target_strength_db
         st, det = self.settings, detected.table
-        n = detected.n
-        sonar_xyz = np.stack([det[f"{a}_m"] for a in "xyz"], -1).reshape(n, 3)
-        try:     # recorded data may lack a calibration or the element geometry: TS is then NaN
-            cal = calibration_of(self.tree)
-            ts_u, ts_c, pat = target_strength_db(det["amplitude"], det["range_m"], sonar_xyz,
-                                                 gain_counts_m=cal.gain_counts_m,
-                                                 absorption_db_per_m=cal.absorption_db_per_m,
-                                                 pattern=beam_pattern_of(self.tree))
-        except DatasetError:
-            ts_u = ts_c = pat = np.full(n, np.nan)
+        ts_u, ts_c, pat = self._target_strength(detected, near_field=st.single_target.near_field)
         single = single_targets(det["ping"], det["range_m"], det["azimuth_rad"], det["amplitude"],
                                 range_resolution_m=detected.range_resolution_m,
                                 azimuth_resolution_rad=detected.azimuth_resolution_rad,
@@ -387,3 +409,120 @@ class RecordChain:
         single &= ~(ts_c < st.track.min_ts_db)
         return {"ts_uncomp_db": ts_u, "ts_comp_db": ts_c, "beam_pattern_db": pat,
                 "single_target": single}
+
+    @cached_property
+    def nominal_echo_length_m(self) -> float:
+        """Echo length (m) of one point target at the −level_db points of the matched-filter
+        envelope: the normaliser of echo lengths (:mod:`processing.backscatter.echo_criteria`)."""
+        from processing.backscatter.echo_criteria import nominal_echo_length_m
+        from processing.imaging.compression import RangeFilter
+        rec, st = self.record, self.settings
+        rf = RangeFilter.design(rec.replica, n_samples=rec.samples.shape[-1], rate_hz=rec.rate_hz,
+                                bandwidth_hz=rec.bandwidth_hz, range_window=st.image.range_window)
+        return nominal_echo_length_m(rf.response, rf.rate_hz, rec.sound_speed_m_s,
+                                     level_db=st.single_target.echo_length_level_db)
+
+    def target_detection(self, detected: Detected | None = None, *, chunk: int = 8) -> dict:
+        """Single-target detection by the echosounder criteria
+        (:mod:`processing.backscatter.echo_criteria`, ``single_target`` settings): every
+        detection is a candidate, measured in the images of its beam (imaged again, ``chunk``
+        pings at a time, unless ``detected`` kept them).
+
+        Returns
+        -------
+        dict of ndarray, each shape (n_detections,)
+            ``ts_uncomp_db``, ``ts_comp_db`` (dB re 1 m²), ``beam_pattern_db`` (two-way at the
+            located position, near field included when ``single_target.near_field``, dB),
+            ``beam_compensation_db`` (one-way, dB), ``echo_length_m``, ``echo_length``
+            (normalised), ``phase_deviation_deg`` (ψ_AB, electrical), ``angle_deviation_deg``
+            (elevation, mechanical), ``azimuth_phase_deviation_deg`` (split-aperture phase,
+            electrical), ``azimuth_deviation_deg`` (mechanical), ``echo_spacing`` (nominal pulse lengths, inf alone),
+            ``rejected_by`` (str: the first rule failed, "" for a single target) and
+            ``single_target`` (bool).
+        """
+        from processing.backscatter.echo_criteria import echo_spacing, verdicts
+        from processing.backscatter.single_targets import single_targets
+        st = self.settings
+        sts = st.single_target
+        detected = self.detected() if detected is None else detected
+        det, n = detected.table, detected.n
+        ts_u, ts_c, pat = self._target_strength(detected, near_field=sts.near_field)
+        sidelobe = ~single_targets(det["ping"], det["range_m"], det["azimuth_rad"], det["amplitude"],
+                                   range_resolution_m=detected.range_resolution_m,
+                                   azimuth_resolution_rad=detected.azimuth_resolution_rad,
+                                   sidelobe_db=sts.sidelobe_db, same_cell=False)
+        length_m = np.full(n, np.nan)
+        phase_dev = np.full(n, np.nan)
+        angle_dev = np.full(n, np.nan)
+        az_phase_dev = np.full(n, np.nan)
+        az_dev = np.full(n, np.nan)
+        ping = np.asarray(det["ping"], int)
+        pings = np.unique(ping)
+        for s in range(0, pings.size, chunk):
+            part = pings[s:s + chunk]
+            im = (detected.images.pings(part) if detected.images is not None
+                  else self.images(pings=part))
+            self._measure_echoes(im, part, ping, det, length_m, phase_dev, angle_dev, az_phase_dev, az_dev)
+        nominal = self.nominal_echo_length_m
+        comp = np.where(np.isfinite(pat), -0.5 * pat, np.nan)
+        spacing = echo_spacing(ping, det["range_m"], det["azimuth_rad"], ~sidelobe,
+                               azimuth_resolution_rad=detected.azimuth_resolution_rad) / nominal
+        echo_length = length_m / nominal
+        # the larger of the two planes' phase deviations, as a split-beam echosounder applies
+        # its one limit to both (NaN, the rule skipped, where neither plane has a phase)
+        both = np.stack([phase_dev, az_phase_dev])
+        worst = np.where(np.all(np.isnan(both), axis=0), np.nan,
+                         np.nanmax(np.where(np.isnan(both), -np.inf, both), axis=0))
+        rule = verdicts(sidelobe=sidelobe, ts_comp_db=ts_c, echo_length=echo_length,
+                        phase_deviation_deg=worst, compensation_db=comp, spacing=spacing,
+                        settings=sts)
+        return {"ts_uncomp_db": ts_u, "ts_comp_db": ts_c, "beam_pattern_db": pat,
+                "beam_compensation_db": comp, "echo_length_m": length_m, "echo_length": echo_length,
+                "phase_deviation_deg": phase_dev, "angle_deviation_deg": angle_dev,
+                "azimuth_phase_deviation_deg": az_phase_dev, "azimuth_deviation_deg": az_dev,
+                "echo_spacing": spacing, "rejected_by": rule, "single_target": rule == ""}
+
+    def _measure_echoes(self, im, part, ping, det, length_m, phase_dev, angle_dev, az_phase_dev, az_dev):
+        """Echo length and phase deviation of the detections of pings ``part`` (rows of the
+        file) from their images ``im`` (one per ping of ``part``), written in place."""
+        from processing.backscatter.echo_criteria import echo_shape
+        sts = self.settings.single_target
+        gi = im.group_index(self.settings.detect.image_group)
+        inter = im.interferometric
+        if inter:
+            ia, ib = im.groups.index("A"), im.groups.index("B")
+            b = im.baseline_m
+        r_axis = np.asarray(im.range_m, float)
+        step = float((r_axis[-1] - r_axis[0]) / (r_axis.size - 1)) if r_axis.size > 1 else 0.0
+        u_beam = np.sin(np.asarray(im.beam_angle_rad, float))
+        nb = u_beam.size
+        # the split aperture: the two halves of the imaged subarray, their centres half the
+        # aperture apart (x extent of the image's elements)
+        idx = self.record.image_groups[im.groups[gi]]
+        xs = np.sort(self.record.element_position_m[idx, 0])
+        d_split = float(xs[-1] - xs[0]) * xs.size / (2.0 * max(xs.size - 1, 1))
+        k = 2 * np.pi / im.wavelength_m
+        for j, p in enumerate(part):
+            for i in np.flatnonzero(ping == p):
+                row = int(np.clip(np.rint((det["range_m"][i] - r_axis[0]) / step) if step else 0,
+                                  0, r_axis.size - 1))
+                beam = int(np.argmin(np.abs(u_beam - np.sin(det["azimuth_rad"][i]))))
+                env = np.abs(im.image[j, gi, :, beam])
+                cross = (im.image[j, ia, :, beam] * np.conj(im.image[j, ib, :, beam]) if inter else None)
+                sides = (np.abs(im.image[j, gi, :, [beam - 1, beam + 1]]).T if 0 < beam < nb - 1 else None)
+                length_m[i], phase_dev[i], off_sd = echo_shape(
+                    env, row, range_step_m=step, level_db=sts.echo_length_level_db, cross=cross,
+                    neighbours=sides)
+                if np.isfinite(off_sd):
+                    du = 0.5 * (u_beam[beam + 1] - u_beam[beam - 1])
+                    az_phase_dev[i] = np.degrees(k * d_split * du * off_sd)
+                    az_dev[i] = np.degrees(du * off_sd / max(np.cos(im.beam_angle_rad[beam]), 1e-6))
+                if inter and np.isfinite(phase_dev[i]):
+                    # dφ/dψ = λ / (2π R cos(φ + γ)), R the baseline's share that elevation changes
+                    th = float(im.beam_angle_rad[beam])
+                    a = b[0] * np.sin(th) + b[2] * np.cos(th)
+                    big_r = float(np.hypot(a, b[1]))
+                    phi = float(det["elevation_rad"][i]) if "elevation_rad" in det else 0.0
+                    gamma = float(np.arctan2(a, b[1]))
+                    cosv = max(abs(np.cos(phi + gamma)), 1e-6)
+                    angle_dev[i] = phase_dev[i] * im.wavelength_m / (2 * np.pi * big_r * cosv)

@@ -15,7 +15,7 @@ from processing.base.config import (AngleDeg, AngleRangeDeg, ConfigModel, Count,
                      Real, read_yaml, validate_file)
 
 __all__ = ["ImageSettings", "NoiseSettings", "CfarSettings", "DetectSettings", "CountSettings", "TrackSettings",
-           "ProcessingSettings", "load_settings", "WINDOWS"]
+           "SingleTargetSettings", "SONAR_NETCDF4_PARAMETERS", "ProcessingSettings", "load_settings", "WINDOWS"]
 
 #: windows accepted by name (scipy.signal.windows), range and spatial
 WINDOWS = ("rectangular", "hamming", "hann", "taylor", "blackman")
@@ -153,12 +153,21 @@ class TrackSettings(ConfigModel):
 
     method: Literal["kalman", "alpha_beta"] = "kalman"
     """Constant-velocity Kalman filter with RTS smoothing, or the thesis' αβ filter (§7)."""
+    association: Literal["gnn", "jpda"] = "gnn"
+    """Gate-and-assign part (processing/tracking/association.py): global nearest neighbour, or
+    the parametric JPDA, which shares a detection falling in several tracks' gates."""
+    resolution_cells: NonNegativeReal = Field(1.0, le=10)
+    """Resolution gate: a track the assignment left without a detection takes one within this
+    many resolution cells (range × azimuth resolution × the fan's elevation width) of its
+    prediction, and no new track starts within it of a confirmed track (two fish closer than a
+    cell are not told apart; the cell's spread is δ/√12 per axis);
+    0 turns it off (processing.tracking.filters.track_detections)."""
     gate_probability: Real = Field(0.99, gt=0.5, lt=1)
     """Chi-square gate (3 degrees of freedom) on the innovation's Mahalanobis distance."""
-    accel_sd_m_s2: PositiveReal = Field(0.1, le=100)
-    """Process noise: white acceleration of this spectral density √q (m/s² per √(1/s)). 0.1 suits
-    schooling fish cruising at body lengths per second; a larger value follows sharper turns
-    but lets a track jump to a neighbour (docs/validation.md, "Tracking")."""
+    accel_sd_m_s2: PositiveReal = Field(0.05, le=100)
+    """Process noise: white acceleration of this spectral density √q (m/s² per √(1/s)). 0.05 suits
+    schooling fish cruising nearly straight at body lengths per second; a larger value follows
+    sharper turns but lets a track jump to a neighbour (docs/validation.md, "Tracking")."""
     initial_speed_sd_m_s: PositiveReal = Field(0.5, le=100)
     """Velocity spread of a new track (m/s); the αβ gate's allowance for motion."""
     alpha: Real = Field(0.5, gt=0, le=1)
@@ -168,11 +177,15 @@ class TrackSettings(ConfigModel):
     confirm_hits: PositiveCount = Field(3, le=100)
     """Detections a tentative track needs within its first ``confirm_window`` pings."""
     confirm_window: PositiveCount = Field(4, le=100)
-    max_misses: Count = Field(2, le=100)
-    """Consecutive pings without a detection after which a track ends."""
+    max_misses: Count = Field(6, le=100)
+    """Consecutive pings without a detection after which a track ends (6: a fish hidden for
+    1.5 s in a neighbour's echo at 0.25 s pings keeps its track; docs/validation.md, "Tracking")."""
     sidelobe_db: NonNegativeReal = Field(20.0, le=100)
-    """Single targets: a detection within 2.5 range cells of one this much stronger (dB) is
-    taken as its range or azimuth sidelobe (or ghost) and not tracked; 0 tracks everything."""
+    """Single targets: a detection within 2.5 range cells of one this much stronger (dB), or
+    weaker and in its resolution cell, is taken as its range or azimuth sidelobe (or ghost) and
+    not tracked; 0 tracks everything. In a dense school the same-cell part drops fish side by
+    side with a stronger one; off (0), a strong lone fish's sidelobes form short tracks of
+    their own (docs/validation.md, "Tracking")."""
     min_ts_db: Real = Field(-70.0, ge=-200, le=50)
     """TS threshold of single targets (dB re 1 m²): a detection whose beam-compensated TS is
     below it (a multipath echo via the floor, a far range sidelobe) is not tracked; one beyond
@@ -191,6 +204,65 @@ class TrackSettings(ConfigModel):
         return self
 
 
+class SingleTargetSettings(ConfigModel):
+    """Single-target detection by the echosounder criteria (Soule et al. 1995, 1997; Ona 1999;
+    Simrad EK60/EK80, Echoview): each field is a detection parameter of the SONAR-netCDF4 2.0
+    SingleTarget group (``param_<name>`` there; :data:`SONAR_NETCDF4_PARAMETERS`), with its
+    meaning. Echo lengths are measured at the −6 dB points of the matched-filter envelope and
+    normalised by the nominal (compressed) pulse's, the same measure on the range filter's own
+    point response (processing/backscatter/echo_criteria.py, docs/single_targets.md)."""
+
+    ts_threshold_db: Real = Field(-50.0, ge=-200, le=50)
+    """param_TS_threshold: minimum compensated TS (dB re 1 m²) of a single target."""
+    gain_compensation_db: NonNegativeReal = Field(6.0, le=60)
+    """param_gain_compensation: maximum one-way beam compensation (dB): half the two-way
+    compensation at the located angles."""
+    minimum_echo_duration: PositiveReal = Field(0.9, le=100)
+    """param_minimum_echo_duration: minimum −6 dB echo length relative to the nominal pulse's.
+    One echo of the compressed pulse has the nominal length within ±3 % at SNR ≥ 35 dB
+    (docs/single_targets.md); EK60's CW defaults (0.8–2.5) allow for a CW envelope that a
+    matched filter with the known replica does not have."""
+    maximum_echo_duration: PositiveReal = Field(1.1, le=100)
+    """param_maximum_echo_duration: maximum −6 dB echo length relative to the nominal pulse's."""
+    maximum_phase_deviation: NonNegativeReal | None = Field(3.0, alias="maximum_phase_deviation_deg",
+                                                           le=180)
+    """param_maximum_phase_deviation: maximum standard deviation (deg, electrical) of the phase
+    over the samples within the echo's −6 dB points, the larger of the two planes' (elevation:
+    ψ_AB; azimuth: the split-aperture phase of the beam-domain peak); null: not applied. Noise
+    alone gives ≈ 0.5° at SNR 50 dB and up to ≈ 3° at 38 dB: raise it for weaker echoes."""
+    minimum_echo_spacing: NonNegativeReal = Field(1.0, le=100)
+    """param_minimum_echo_spacing: another echo in the same beam (within one azimuth
+    resolution) closer in range than this many nominal pulse lengths rejects both."""
+    echo_length_level_db: PositiveReal = Field(6.0, le=30)
+    """Level below the peak (dB) at which the echo length is measured (Echoview's pulse length
+    determination level); the SONAR-netCDF4 convention and the issue's criteria use 6 dB."""
+    sidelobe_db: NonNegativeReal = Field(20.0, le=100)
+    """A detection within 2.5 range cells of one this much stronger (dB) is its range or azimuth
+    sidelobe (or grating ghost), not a target (rule ``sidelobe``); 0 turns the rule off."""
+    near_field: bool = True
+    """Compensate TS for the transmitter's and the receive beam's near field at the located
+    position (processing/backscatter/target_strength.py); false: the far-field pattern only,
+    as echosounders compensate (TS then reads ≈ 53/r² dB low on axis: 0.1 dB at 23 m)."""
+
+    @model_validator(mode="after")
+    def _durations(self):
+        if not self.minimum_echo_duration < self.maximum_echo_duration:
+            raise ValueError(f"minimum_echo_duration ({self.minimum_echo_duration}) must be less "
+                             f"than maximum_echo_duration ({self.maximum_echo_duration})")
+        return self
+
+
+#: SingleTargetSettings field -> SONAR-netCDF4 2.0 SingleTarget variable (and its unit)
+SONAR_NETCDF4_PARAMETERS = {
+    "ts_threshold_db": ("param_TS_threshold", "dB"),
+    "gain_compensation_db": ("param_gain_compensation", "dB"),
+    "minimum_echo_duration": ("param_minimum_echo_duration", "1"),
+    "maximum_echo_duration": ("param_maximum_echo_duration", "1"),
+    "maximum_phase_deviation": ("param_maximum_phase_deviation", "arc_degree"),
+    "minimum_echo_spacing": ("param_minimum_echo_spacing", "1"),
+}
+
+
 class ProcessingSettings(ConfigModel):
     """All processing settings."""
 
@@ -198,6 +270,7 @@ class ProcessingSettings(ConfigModel):
     detect: DetectSettings = DetectSettings()
     count: CountSettings = CountSettings()
     track: TrackSettings = TrackSettings()
+    single_target: SingleTargetSettings = SingleTargetSettings()
 
 
 def load_settings(path: str | Path) -> ProcessingSettings:

@@ -111,6 +111,14 @@ def test_results_identical_for_one_two_workers_and_a_resume(tmp_path):
         np.testing.assert_array_equal(one[k], two[k], err_msg=k)
         np.testing.assert_array_equal(one[k], resumed[k], err_msg=k)
     assert np.isfinite(one["count_after"]).all() and np.isfinite(one["true_in_volume"]).all()
+    # nMAE of the per-ping counts beside the mean error: Σ|count − true| / Σ true per setting,
+    # never below |Σ(count − true)| / Σ true (errors of single pings do not cancel)
+    with xr.open_dataset(res_path) as ds:
+        for when in ("before", "after"):
+            c, t = ds[f"count_{when}"].values, ds["true_in_volume"].values
+            want = np.abs(c - t).sum(axis=1) / t.sum(axis=1)
+            np.testing.assert_allclose(ds[f"count_nmae_{when}"].values, want, rtol=1e-12)
+            assert np.all(ds[f"count_nmae_{when}"].values + 1e-12 >= np.abs((c - t).sum(axis=1)) / t.sum(axis=1))
 
 
 def test_a_folder_of_another_experiment_is_refused(tmp_path):

@@ -330,11 +330,24 @@ def test_abacus_track_json_and_mot_files_of_a_small_school(school):
     assert g["conf"].tolist() == gt["target_in_counting_volume"].values[go].tolist()
     np.testing.assert_allclose(g["z"], gt["target_world_z"].values[go], atol=5.1e-5)
 
-    # score the files as another tool would: the lines with conf 1, per frame, by TrackEval
+    # score the files as another tool would: the truth lines with conf 1 (inside the counting
+    # volume) per frame, the track lines preprocessed as TrackEval's MOTChallenge reader does
+    # with distractors: a track line matched (Hungarian, within D_MAX) to a fish outside the
+    # volume is dropped, an unmatched one outside it too; then HOTA by TrackEval
+    from scipy.optimize import linear_sum_assignment
     gi, ti, sims = [], [], []
     for f in range(1, SCHOOL_PINGS + 1):
-        a = (g["frame"] == f) & (g["conf"] == 1)
-        b = (tr["frame"] == f) & (tr["conf"] == 1)
+        ga, tb = np.flatnonzero(g["frame"] == f), np.flatnonzero(tr["frame"] == f)
+        keep = tr["conf"][tb] == 1
+        if ga.size and tb.size:
+            d = np.linalg.norm(np.c_[g["x"][ga], g["y"][ga], g["z"][ga]][:, None]
+                               - np.c_[tr["x"][tb], tr["y"][tb], tr["z"][tb]][None], axis=-1)
+            c = np.where(d <= D_MAX, d, 1e9)
+            i, j = linear_sum_assignment(c)
+            ok = c[i, j] < 1e9
+            keep[j[ok]] = g["conf"][ga[i[ok]]] == 1
+        a = ga[g["conf"][ga] == 1]
+        b = tb[keep]
         gi.append(g["id"][a])
         ti.append(tr["id"][b])
         sims.append(localisation_similarity(np.c_[g["x"][a], g["y"][a], g["z"][a]],

@@ -19,7 +19,7 @@ from .test_cli import abacus
 C, F0, B, FS = 1500.0, 200e3, 20e3, 80e3
 
 
-def _recording(path, *, az_deg=10.0, el_deg=0.5, range_m=18.0, pings=3, **override):
+def _recording(path, *, az_deg=10.0, el_deg=0.5, range_m=18.0, pings=3, ns=2048, **override):
     """A .mat recording of a point target by a 200 kHz sonar unlike ABACUS: two subarrays of 8
     elements at 0.6 λ pitch, 2 λ apart, an 8-element transmitter; echoes computed here from the
     two-way delay of every element (the LFM replica delayed, carrier phase −2π f0 τ)."""
@@ -32,7 +32,7 @@ def _recording(path, *, az_deg=10.0, el_deg=0.5, range_m=18.0, pings=3, **overri
     tx = np.c_[np.zeros(8), (np.arange(8) - 3.5) * 0.5 * lam, np.zeros(8)]
     th, ph = np.radians(az_deg), np.radians(el_deg)
     p = range_m * np.array([np.cos(ph) * np.sin(th), np.sin(ph), np.cos(ph) * np.cos(th)])
-    t0, ns = 0.01, 2048
+    t0 = 0.01
     ts = t0 + np.arange(ns) / FS
     X = np.zeros((pings, 16, ns), complex)
     for k in range(16):
@@ -227,3 +227,47 @@ def test_a_sonar_netcdf4_file_written_with_plain_xarray_is_read(tmp_path):
     t["Sonar"].dataset = t["Sonar"].to_dataset(inherit=False).drop_vars("tx_element_weight")
     with pytest.raises(processing.DatasetError, match="tx_element_weight"):
         processing.detect(t)
+
+
+def test_a_split_recording_images_its_whole_record_and_finds_a_target_at_35_m(tmp_path):
+    """A .mat recording split into subarrays A and B, 7.5–45.9 m recorded, a target at 35 m:
+    without a scene the image spans the whole record (not the thesis' 13–26 m default), and the
+    target is located at its range within a quarter of the 3.75 cm range resolution and its
+    azimuth within 0.25°."""
+    _recording(tmp_path / "far.mat", range_m=35.0, pings=1, ns=4096)
+    tree = processing.open_record(tmp_path / "far.mat")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        im = processing.images_of(processing.image(tree))
+        d = processing.detections_of(processing.detect(tree))
+    assert set(im.groups) == {"A", "B"}
+    assert im.range_m[0] < 8.0 and im.range_m[-1] > 45.0
+    i = int(np.argmax(d["amplitude"].values))
+    assert abs(float(d["range_m"][i]) - 35.0) < 0.25 * C / (2 * B)
+    assert abs(np.degrees(float(d["azimuth_rad"][i])) - 10.0) < 0.25
+
+
+def test_the_echopype_view_calibrates_back_to_abacus_sv(tmp_path):
+    """`abacus sv --echopype`: the image in the EK60's convention. Through the EK60 equation
+    (processing/backscatter/ek60.py, which matches echopype's compute_Sv on a real EK60 file to
+    0.1 dB: tests/test_echosounder.py) it gives back abacus' Sv of every cell to 1e-6 dB, the same
+    cells without Sv, and each cell's range within half a range cell; the view holds what
+    echopype's combine_echodata needs (Provenance's conversion_software_name, one time axis)."""
+    from processing.backscatter.ek60 import sv_of_power
+    from processing.base.echosounder import read_power_record
+    processing.write_tree(acoustics.simulate(acoustics.load_scene("two_targets"), pings=range(2)),
+                          tmp_path / "s.nc")
+    r = abacus("sv", "s.nc", "-o", "p.nc", "--echopype", "view.nc", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    cells = open_tree(tmp_path / "p.nc")["Processing/Sv"].ds
+    view = processing.open_record(tmp_path / "view.nc")
+    assert view.attrs["keywords"] == "EK60"
+    assert view["Provenance"].attrs["conversion_software_name"] == "abacus"
+    sv, rng = sv_of_power(read_power_record(view))                 # (beam, ping, sample)
+    want = cells["Sv"].values.transpose(2, 0, 1)
+    n0 = sv.shape[2] - want.shape[2]
+    np.testing.assert_array_equal(np.isnan(sv[:, :, n0:]), np.isnan(want))
+    assert np.all(np.isnan(sv[:, :, :n0]))
+    assert np.nanmax(np.abs(sv[:, :, n0:] - want)) < 1e-6
+    r_cells = cells["cell_range_m"].values[0, :, 0]
+    assert np.max(np.abs(rng[0, 0, n0:] - r_cells)) <= 0.5 * np.median(np.diff(r_cells)) + 1e-9

@@ -51,7 +51,10 @@ def test_default_scene_is_the_pelagic_survey():
         s = load_scene(SCENES / "default.yaml")
     pop = s.targets.populations[0]
     assert pop.count == 100 and pop.volume_m3 == pytest.approx(215.6, rel=1e-3)
-    assert s.noise.enabled and s.noise.sigma_counts == 126.68
+    # the thesis' noise σ = 126.68 and Rayleigh ρ scale 0.5 m, both x 0.025: its SNR, a fish's TS
+    assert s.noise.enabled and s.noise.sigma_counts == pytest.approx(126.68 * 0.025, rel=1e-12)
+    bs = pop.backscatter
+    assert (bs.scale_m, bs.lo_m, bs.hi_m) == pytest.approx((0.5 * 0.025, 0.25 * 0.025, 1.25 * 0.025))
     assert s.sampling.adc.scale_counts == 16384
     assert s.pings.count == 100
 

@@ -19,7 +19,8 @@ from pathlib import Path
 __all__ = ["main", "build_parser", "COMMANDS"]
 
 #: sub-commands in the order ``abacus --help`` lists them
-COMMANDS = ("run", "scene", "beams", "simulate", "image", "count", "track", "sv", "convert", "experiment", "view")
+COMMANDS = ("run", "scene", "beams", "simulate", "image", "count", "targets", "track", "sv", "convert", "experiment",
+            "view")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

@@ -49,8 +49,10 @@ def beam_figures(scene, outdir: Path) -> list[Path]:
 
 
 def _figure_key(scene):
+    from abacus.figures.beams import BEAM_FIGURE_STYLE
     medium, f0, geometry = _geometry(scene)
-    return (tuple(sorted((geometry or {}).items())), float(medium.sound_speed_m_s), float(f0))
+    return (tuple(sorted((geometry or {}).items())), float(medium.sound_speed_m_s), float(f0),
+            BEAM_FIGURE_STYLE)
 
 
 def beam_cuts_of(scene) -> dict:

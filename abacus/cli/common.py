@@ -213,7 +213,26 @@ def save_tree(tree, path, *, final=None, fmt=None):
     from processing.base.dataset import write_tree
     check_room(tree_bytes(tree), final or path, what=str(final or path))
     with interrupts_held():
-        write_tree(tree, path, fmt=fmt)
+        if fmt == SONAR_NETCDF2:    # the single targets and gridded Sv where the dataset has them
+            from processing.export import write_sonar_netcdf2
+            write_sonar_netcdf2(tree, path, command=" ".join(sys.argv))
+        else:
+            write_tree(tree, path, fmt=fmt)
+
+
+#: ``--format`` of the commands that write datasets: SONAR-netCDF4 2.0 (1.0, what echopype
+#: opens, stays the default: ``netcdf`` or ``zarr``)
+SONAR_NETCDF2 = "sonar-netcdf4-2"
+DATASET_FORMATS = ("netcdf", "zarr", SONAR_NETCDF2)
+
+
+def dataset_format(out, fmt) -> str:
+    """The format a dataset is written in: ``fmt``, else from the suffix (``.zarr``: Zarr);
+    SONAR-netCDF4 2.0 only as a ``.nc`` file (one line otherwise)."""
+    fmt = fmt or ("zarr" if Path(out).suffix == ".zarr" else "netcdf")
+    if fmt == SONAR_NETCDF2 and Path(out).suffix.lower() != ".nc":
+        raise UsageError(f"--format {SONAR_NETCDF2} writes a NetCDF4 file: name the output *.nc, not {Path(out).name}")
+    return fmt
 
 
 def check_scene_resources(scene, args, *, pings=None, images="none", process=True, output=None,

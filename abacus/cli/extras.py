@@ -15,7 +15,7 @@ from processing.base.extras import require
 __all__ = ["check_extras"]
 
 #: commands that read or write datasets (.nc, or Zarr with the extra ``zarr``)
-DATASET_COMMANDS = ("simulate", "image", "count", "track", "sv", "convert", "experiment")
+DATASET_COMMANDS = ("simulate", "image", "count", "targets", "track", "sv", "convert", "experiment")
 
 #: files that make a folder a Zarr store (v2 and v3)
 _ZARR_MARKS = (".zgroup", ".zattrs", ".zmetadata", "zarr.json")

@@ -41,7 +41,7 @@ def command(args) -> int:
             from processing.records import figure_images
             tmp = outputs.path(plots)
             tmp.mkdir()
-            image_figures(figure_images(out_tree, [args.ping]), tmp, ping=args.ping)
+            image_figures(figure_images(out_tree, [args.ping]), tmp, ping=args.ping, tree=out_tree)
     if out is not None:
         print(f"wrote {out}")
     if plots is not None:

@@ -26,6 +26,10 @@ def add_parser(sub):
     r.add_argument("--images", choices=["none", "native", "full"], default="none",
                    help="store the images in run.nc: none (default; they follow from the samples), "
                         "native (at the data's range sampling) or full (every interpolated row)")
+    r.add_argument("--format", choices=["netcdf", "sonar-netcdf4-2"], default="netcdf",
+                   help="netcdf (default): run.nc in SONAR-netCDF4 1.0; sonar-netcdf4-2: also "
+                        "run.sonar-netcdf4-2.nc, SONAR-netCDF4 2.0 with the single targets and "
+                        "gridded Sv (docs/dataset.md)")
     add_output_options(r)
     r.set_defaults(func=command)
 
@@ -44,6 +48,7 @@ def command(args) -> int:
             drawing = stack.enter_context(figure_drawing(getattr(args, "standalone", False)))
         result = run(args.scene, args.output, pings=args.pings, plots=args.plots, images=args.images,
                      overwrite=args.overwrite, max_memory_gb=args.max_memory, drawing=drawing,
+                     sonar_netcdf2=args.format == "sonar-netcdf4-2",
                      progress=Progress("simulate"), announce=print, started_s=_T0)
     print()
     print(processing.format_counts(result.summary))

@@ -4,8 +4,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from abacus.cli.common import (Progress, UsageError, add_output_options, check_output,
-                                  check_scene_resources, load, ping_list, save_tree)
+from abacus.cli.common import (DATASET_FORMATS, Progress, UsageError, add_output_options, check_output,
+                                  check_scene_resources, dataset_format, load, ping_list, save_tree)
 from acoustics.seeds import SEED_MAX
 
 HELP = "simulate a scene's per-element echoes into a dataset"
@@ -17,7 +17,9 @@ def add_parser(sub):
     m.add_argument("-o", "--output", required=True, help="output file (.nc) or folder (.zarr)")
     m.add_argument("--pings", type=int, help="number of pings (default: the scene's)")
     m.add_argument("--seed", type=int, help="seed (default: the scene's)")
-    m.add_argument("--format", choices=["netcdf", "zarr"], help="default from the suffix")
+    m.add_argument("--format", choices=DATASET_FORMATS,
+                   help="netcdf or zarr: SONAR-netCDF4 1.0 (default, from the suffix; what echopype "
+                        "opens); sonar-netcdf4-2: SONAR-netCDF4 2.0 (.nc; docs/dataset.md)")
     add_output_options(m)
     m.set_defaults(func=command)
 
@@ -29,7 +31,7 @@ def command(args) -> int:
     scene = load(args.scene)
     out = check_output(args.output, overwrite=args.overwrite,
                        inputs=[args.scene] if Path(args.scene).exists() else [])
-    fmt = args.format or ("zarr" if out.suffix == ".zarr" else "netcdf")
+    fmt = dataset_format(out, args.format)
     if args.seed is not None and not 0 <= args.seed <= SEED_MAX:
         raise UsageError(f"--seed must be an integer in [0, {SEED_MAX}], got {args.seed}")
     pings = ping_list(scene, args.pings)

@@ -19,6 +19,14 @@ def add_parser(sub):
                    help="a NASC range layer in m (repeatable); default the image's range")
     c.add_argument("--csv", metavar="FILE", help="MVBS cells as CSV")
     c.add_argument("--nasc-csv", metavar="FILE", help="NASC per ping, layer and beam as CSV")
+    c.add_argument("--cells", action="store_true",
+                   help="keep every cell's Sv (dB) and linear s_v in /Processing/Sv (always for a Simrad record)")
+    c.add_argument("--cells-csv", metavar="FILE", help="every cell's Sv (dB) and linear s_v as CSV (implies --cells)")
+    c.add_argument("--echopype", metavar="FILE",
+                   help="the calibrated image in the EK60's convention, for echopype's open_converted, "
+                        "combine_echodata and compute_Sv (docs/interop.md)")
+    c.add_argument("--empty", choices=("blank", "-999"), default="blank",
+                   help="a CSV cell without Sv: blank (default) or -999, as Echoview writes it")
     c.add_argument("--json", action="store_true", help="print one JSON object: layer NASC and mean Sv")
     add_output_options(c)
     c.set_defaults(func=command)
@@ -69,18 +77,21 @@ def command(args) -> int:
 
     from processing.base.atomic import staged_set
     from processing.base.dataset import open_tree
-    from processing.backscatter.sv import SV_GROUP, LayerError, backscatter, write_mvbs_csv, write_nasc_csv
+    from processing.backscatter.sv import (SV_GROUP, LayerError, backscatter, write_cells_csv, write_mvbs_csv,
+                                           write_nasc_csv)
     if not (math.isfinite(args.range_bin) and args.range_bin > 0) or args.ping_bin < 1:
         raise UsageError("--range-bin must be a positive number of metres and --ping-bin at least 1")
     layers = _layers(args.layer)
-    out, csv, ncsv = check_outputs(
-        args, [("-o", args.output, False), ("--csv", args.csv, False), ("--nasc-csv", args.nasc_csv, False)],
+    out, csv, ncsv, ccsv, epv = check_outputs(
+        args, [("-o", args.output, False), ("--csv", args.csv, False), ("--nasc-csv", args.nasc_csv, False),
+               ("--cells-csv", args.cells_csv, False), ("--echopype", args.echopype, False)],
         inputs=[args.input, args.settings])
     tree = open_tree(args.input, max_memory_gb=args.max_memory, work_factor=3.0)
     _check_grid_bound(tree, args)
     try:
         tree = backscatter(tree, args.settings, range_bin_m=args.range_bin, ping_bin=args.ping_bin,
-                           layers_m=layers, max_memory_gb=args.max_memory)
+                           layers_m=layers, max_memory_gb=args.max_memory,
+                           cells=bool(args.cells or args.cells_csv or args.echopype))
     except LayerError as exc:
         raise UsageError(f"--layer {args.layer[exc.layer]}: {exc}") from None
     ds = tree[SV_GROUP].ds
@@ -100,7 +111,12 @@ def command(args) -> int:
         if out is not None:
             save_tree(tree, outputs.path(out), final=out)
         if csv is not None:
-            write_mvbs_csv(tree, outputs.path(csv))
+            write_mvbs_csv(tree, outputs.path(csv), empty=args.empty)
+        if ccsv is not None:
+            write_cells_csv(tree, outputs.path(ccsv), empty=args.empty)
+        if epv is not None:
+            from processing.backscatter.echopype_view import echopype_view
+            save_tree(echopype_view(tree, args.settings), outputs.path(epv), final=epv)
         if ncsv is not None:
             write_nasc_csv(tree, outputs.path(ncsv))
     if args.json:
@@ -108,13 +124,16 @@ def command(args) -> int:
         print(strict_json(summary))
     else:
         g = summary["grid"]
+        how = (f"calibrated as an {ds.attrs['calibration'].split(':')[0]} record" if "calibration" in ds.attrs
+               else f"noise σ {summary['noise_sigma_counts']:.4g} counts subtracted")
         print(f"MVBS: {g['ping_bins']} ping bin(s) x {g['range_bins']} range bin(s) x {g['beams']} beams; "
               f"mean Sv {summary['Sv_mean_db'] if summary['Sv_mean_db'] is None else round(summary['Sv_mean_db'], 2)} dB re 1 m⁻¹ "
-              f"(noise σ {summary['noise_sigma_counts']:.4g} counts subtracted)")
+              f"({how})")
         for lay in summary["layers"]:
             a, b = lay["range_m"]
             print(f"NASC {a:.2f}–{b:.2f} m: {lay['NASC_mean_m2_nmi2']:.4g} m² nmi⁻² (mean over pings and beams)")
-        for what, where in (("dataset", args.output), ("MVBS CSV", args.csv), ("NASC CSV", args.nasc_csv)):
+        for what, where in (("dataset", args.output), ("MVBS CSV", args.csv), ("NASC CSV", args.nasc_csv),
+                            ("cells CSV", args.cells_csv), ("echopype view (EK60 convention)", args.echopype)):
             if where:
                 print(f"wrote {what}: {where}")
     return 0

@@ -55,8 +55,8 @@ def write_mot_files(tree, folder) -> list:
     ``folder/tracks.txt``: one line per track point, ``folder/gt.txt`` (when the dataset has
     ground truth): one line per true fish per ping of the record; each line
     ``frame,id,-1,-1,-1,-1,conf,x,y,z`` with frame = ping index + 1, id = track number + 1 or
-    ``target_id`` + 1, conf = 1 inside the counting volume and 0 outside (the truth: all 1
-    when it does not say), x, y, z the world position (m)
+    ``target_id`` + 1, conf = 1 inside the counting volume the tracks were counted in (at each
+    ping's pose) and 0 outside, x, y, z the world position (m)
     (:func:`processing.tracking.hota.write_mot`).
 
     Returns
@@ -71,7 +71,7 @@ def write_mot_files(tree, folder) -> list:
     from processing.base.contract import ELEMENT_GROUP, TRUTH_GROUP
     from processing.base.dataset import group_of, ping_indices
     from processing.tracking.hota import write_mot
-    from processing.tracking.tracks import tracks_of
+    from processing.tracking.tracks import tracks_of, truth_in_volume
     folder = Path(folder)
     ds = tracks_of(tree)
     written = [write_mot(folder / "tracks.txt", ds["point_ping_index"].values.astype(int) + 1,
@@ -82,8 +82,8 @@ def write_mot_files(tree, folder) -> list:
     if gt is not None and "target_id" in gt:
         pings = gt["target_ping_index"].values.astype(int)
         keep = np.isin(pings, ping_indices(tree[ELEMENT_GROUP].ds))
-        conf = (gt["target_in_counting_volume"].values.astype(int) if "target_in_counting_volume" in gt
-                else np.ones(pings.size, int))
+        # the volume the tracks were counted and scored in (count.range_m included)
+        conf = truth_in_volume(tree).astype(int)
         written.append(write_mot(folder / "gt.txt", pings[keep] + 1, gt["target_id"].values.astype(int)[keep] + 1,
                                  np.stack([gt[f"target_world_{a}"].values for a in "xyz"], -1)[keep],
                                  conf[keep]))

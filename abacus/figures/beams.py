@@ -6,10 +6,13 @@ from pathlib import Path
 from processing.base.atomic import staged
 from abacus.figures.plots import fixed_layout
 
-__all__ = ["plot_beam_figures", "BEAM_FIGURES"]
+__all__ = ["plot_beam_figures", "BEAM_FIGURES", "BEAM_FIGURE_STYLE"]
 
 #: the files :func:`plot_beam_figures` writes, in order
 BEAM_FIGURES = ("beams_transmitter.png", "beams_receiver.png", "beams_receiver_modes.png")
+#: the drawing's edition, part of the geometry cache's key for these figures: a change of how they
+#: are drawn must not be served from PNGs cached by the previous drawing
+BEAM_FIGURE_STYLE = 2
 
 
 def _figure(cuts, keys, labels, title, path, *, spans=None):
@@ -17,8 +20,8 @@ def _figure(cuts, keys, labels, title, path, *, spans=None):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    fixed_layout(fig, top=0.75, wspace=0.22)
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
+    fixed_layout(fig, top=0.75, bottom=1.0, wspace=0.22)
     for ax, plane in zip(axes, ("azimuth", "elevation")):
         for key, label, style in zip(keys, labels, ("-", "--", ":")):
             deg, db = cuts[key][plane]
@@ -28,10 +31,11 @@ def _figure(cuts, keys, labels, title, path, *, spans=None):
         ax.set_ylim(-60, 3)
         ax.axhline(-3, color="0.6", lw=0.6)
         ax.set_xlabel(f"{'azimuth θ' if plane == 'azimuth' else 'elevation φ'} (deg)")
-        ax.set_ylabel("directivity E/max E (dB)")
-        ax.set_title(f"{plane} cut ({'φ' if plane == 'azimuth' else 'θ'} = 0)")
+        ax.set_ylabel("directivity 20 log₁₀ |E| / max |E| (dB)")
+        ax.set_title(f"{plane} cut ({'φ' if plane == 'azimuth' else 'θ'} = 0); grey: −3 dB")
         ax.grid(alpha=0.3)
-        ax.legend(loc="lower center", fontsize=8)
+    # one legend below both cuts: inside, it hid the sidelobes it names
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="lower center", ncol=len(keys), fontsize=9)
     fig.suptitle(title)
     with staged(path, suffix=".png") as tmp:
         fig.savefig(tmp, dpi=110)

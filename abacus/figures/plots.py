@@ -93,38 +93,73 @@ def _axes_pixels(ax) -> int:
     return max(200, int(max(pos.width * w, pos.height * h)))
 
 
-def plot_fan(ax, magnitude, range_m, beam_angle_rad, *, dynamic_range_db=40.0, title="",
-             detections=None, pixel_m=None):
-    """Fan-beam image in dB re its maximum, with a colour bar; optional detections (x, z).
+def cell_db(kind: str, magnitude, range_m, calibration: dict | None, group: int = 0):
+    """An image's cells on a colour scale: Sv (``kind`` "sv") or uncompensated TS ("ts") where
+    the dataset is calibrated (:mod:`abacus.figures.calibrated`), else dB re the maximum.
+
+    Parameters
+    ----------
+    kind : {"sv", "ts"}
+    magnitude : array_like, shape (n_range, n_beams)
+        |I| (counts).
+    range_m : array_like, shape (n_range,)
+    calibration : dict or None
+        :func:`abacus.figures.calibrated.echogram_calibration`.
+    group : int
+        Image group (its beams' solid angles, for Sv).
+
+    Returns
+    -------
+    values_db : ndarray, shape (n_range, n_beams)
+    label : str
+        The colour bar's label, with the unit.
+    """
+    from abacus.figures.calibrated import (SV_LABEL, TS_LABEL, UNCALIBRATED_LABEL, sv_image_db,
+                                           ts_image_db)
+    mag = np.asarray(magnitude, float)
+    if calibration is None:
+        return _db(mag, max(float(mag.max()), 1e-300)), UNCALIBRATED_LABEL
+    if kind == "sv":
+        return sv_image_db(mag, range_m, calibration, group), SV_LABEL
+    return ts_image_db(mag, range_m, calibration), TS_LABEL
+
+
+def plot_fan(ax, values_db, range_m, beam_angle_rad, *, vmin: float, vmax: float, label: str,
+             title="", detections=None, pixel_m=None):
+    """Fan-beam image of ``values_db`` (n_range, n_beams; e.g. Sv or TS from :func:`cell_db`)
+    between ``vmin`` and ``vmax`` with a colour bar labelled ``label``, range growing downwards
+    as on an echogram; optional detections (x, z).
 
     The fan is resampled once onto a regular grid as fine as the axes' pixels (never finer than
     a quarter of a range sample) and drawn as one raster (``imshow``): a figure costs what it
     shows, not one polygon per range sample. ``pixel_m`` fixes that grid's pixel size (m).
     """
-    db, extent = _fan_raster(ax, magnitude, range_m, beam_angle_rad, pixel_m)
-    m = ax.imshow(db, origin="lower", extent=extent, cmap="viridis", vmin=-dynamic_range_db,
-                  vmax=0, interpolation="nearest", aspect="equal")
+    db, extent = _fan_raster(ax, values_db, range_m, beam_angle_rad, pixel_m, floor_db=vmin)
+    m = ax.imshow(db, origin="lower", extent=extent, cmap="viridis", vmin=vmin, vmax=vmax,
+                  interpolation="nearest", aspect="equal")
+    ax.invert_yaxis()                  # range grows downwards, as on an echogram
     ax.set_facecolor("white")
     ax.set_xlabel("across-track x (m)")
     ax.set_ylabel("along boresight z (m)")
     ax.set_title(title)
     cb = ax.figure.colorbar(m, ax=ax, fraction=0.046, pad=0.04)
-    cb.set_label("|I| (dB re max)")
+    cb.set_label(label)
     if detections is not None and len(detections[0]):
         _mark_detections(ax, *detections)
     return m
 
 
-def _fan_raster(ax, magnitude, range_m, beam_angle_rad, pixel_m=None):
-    """The fan image for ``ax`` in dB re its maximum (masked outside the fan) and its extent,
-    on pixels of ``pixel_m`` (default :func:`_fan_pixel_m`)."""
+def _fan_raster(ax, values_db, range_m, beam_angle_rad, pixel_m=None, *, floor_db=-np.inf):
+    """The fan image of ``values_db`` for ``ax`` (masked outside the fan; NaN cells drawn at
+    ``floor_db``) and its extent, on pixels of ``pixel_m`` (default :func:`_fan_pixel_m`)."""
     r = np.asarray(range_m, float)
     th = np.asarray(beam_angle_rad, float)
     pixel = pixel_m or _fan_pixel_m(ax, r, th)
-    x, z, img, inside = fan_beam(magnitude, r, th, pixel_m=pixel, with_mask=True)
-    ref = max(float(np.max(magnitude)), 1e-300)
+    v = np.asarray(values_db, float)
+    v = np.where(np.isfinite(v), v, floor_db if np.isfinite(floor_db) else np.nanmin(v))
+    x, z, img, inside = fan_beam(v, r, th, pixel_m=pixel, with_mask=True)
     half = pixel / 2
-    return (np.ma.masked_where(~inside, _db(img, ref)),
+    return (np.ma.masked_where(~inside, img),
             (x[0] - half, x[-1] + half, z[0] - half, z[-1] + half))
 
 
@@ -142,38 +177,42 @@ def _fan_pixel_m(ax, range_m, beam_angle_rad) -> float:
 
 def _mark_detections(ax, x_m, z_m):
     line, = ax.plot(x_m, z_m, "o", mfc="none", mec="r", ms=9, mew=1.2, label="detections")
-    ax.legend(loc="upper right", fontsize=8)
+    ax.legend(loc="lower right", fontsize=8)
     return line
 
 
 def _raster(ax, values, range_m, beam_angle_rad, **kw):
-    """An (n_range, n_beams) array over (azimuth in degrees, range) as one raster; the beams,
-    uniform in sin θ, are drawn at their angles' extent (within 0.3 % of uniform in θ at ±7°)."""
+    """An (n_range, n_beams) array over (azimuth in degrees, range) as one raster, range growing
+    downwards; the beams, uniform in sin θ, are drawn at their angles' extent (within 0.3 % of
+    uniform in θ at ±7°)."""
     deg = np.degrees(np.asarray(beam_angle_rad, float))
     r = np.asarray(range_m, float)
     hb = (deg[-1] - deg[0]) / max(deg.size - 1, 1) / 2
     hr = (r[-1] - r[0]) / max(r.size - 1, 1) / 2
-    return ax.imshow(values, origin="lower", aspect="auto", interpolation="nearest",
-                     extent=(deg[0] - hb, deg[-1] + hb, r[0] - hr, r[-1] + hr), **kw)
+    return ax.imshow(values, origin="upper", aspect="auto", interpolation="nearest",
+                     extent=(deg[0] - hb, deg[-1] + hb, r[-1] + hr, r[0] - hr), **kw)
 
 
-def plot_range_profiles(ax, image, range_m, beam_angle_rad, *, n_profiles=3):
-    """|I| vs range through the beams of the brightest cells (dB re max)."""
+def plot_range_profiles(ax, image, range_m, beam_angle_rad, *, calibration=None, n_profiles=3):
+    """TS (uncompensated; dB re max without a calibration) against range through the beams of
+    the brightest cells, range growing downwards."""
     mag = np.abs(image)
-    ref = max(float(mag.max()), 1e-300)
+    db, label = cell_db("ts", mag, range_m, calibration)
     order = np.argsort(mag.max(axis=0))[::-1][:n_profiles]
     for b in sorted(order):
-        ax.plot(range_m, _db(mag[:, b], ref), lw=0.9,
-                label=f"beam {np.degrees(beam_angle_rad[b]):+.2f}°")
-    ax.set_xlabel("range r = ct/2 (m)")
-    ax.set_ylabel("|I| (dB re max)")
-    ax.set_ylim(-60, 3)
+        ax.plot(db[:, b], range_m, lw=0.9, label=f"beam {np.degrees(beam_angle_rad[b]):+.2f}°")
+    top = float(np.nanmax(db)) if np.isfinite(db).any() else 0.0
+    ax.set_xlim(5 * np.ceil(top / 5) - 60, 5 * np.ceil(top / 5) + 3)
+    ax.set_ylim(range_m[-1], range_m[0])
+    ax.set_ylabel("range r = ct/2 (m)")
+    ax.set_xlabel(label)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="lower left")
 
 
 def plot_phase_map(ax, psi, magnitude, range_m, beam_angle_rad, *, floor_db=-30.0):
-    """Wrapped ψ_AB over (azimuth, range); cells below ``floor_db`` re max are greyed out."""
+    """Wrapped ψ_AB over (azimuth, range), range growing downwards; cells more than
+    ``floor_db`` below the image's maximum are greyed out (their phase is noise's)."""
     ref = max(float(np.max(magnitude)), 1e-300)
     shown = np.ma.masked_where(_db(magnitude, ref) < floor_db, psi)
     m = _raster(ax, shown, range_m, beam_angle_rad, cmap="twilight", vmin=-np.pi, vmax=np.pi)
@@ -181,7 +220,7 @@ def plot_phase_map(ax, psi, magnitude, range_m, beam_angle_rad, *, floor_db=-30.
     ax.set_xlabel("azimuth θ (deg)")
     ax.set_ylabel("range r (m)")
     cb = ax.figure.colorbar(m, ax=ax)
-    cb.set_label("ψ_AB (rad)")
+    cb.set_label(f"ψ_AB (rad); grey: |I| more than {-floor_db:.0f} dB below the maximum")
 
 
 def fixed_layout(fig, *, left=0.8, right=0.25, bottom=0.6, top=0.45, wspace=0.3, hspace=0.3):
@@ -201,7 +240,7 @@ def save(fig, path: Path):
     return path
 
 
-def image_figure_data(images, *, ping: int = 0) -> dict:
+def image_figure_data(images, *, ping: int = 0, calibration: dict | None = None) -> dict:
     """What :func:`draw_image_figures` draws for one ping, as plain arrays (cheap to send to
     another process).
 
@@ -211,26 +250,33 @@ def image_figure_data(images, *, ping: int = 0) -> dict:
         Of that ping alone (:func:`processing.records.figure_images`) or of every ping
         (``ping`` picks one).
     ping : int
+    calibration : dict, optional
+        :func:`abacus.figures.calibrated.echogram_calibration` of the images: the figures are then
+        in Sv and TS; without it, in dB re the image's maximum (and say so).
 
     Returns
     -------
     dict
         ``image`` (n_groups, n_range, n_beams) complex, ``groups``, ``range_m`` (n_range,),
-        ``beam_angle_rad`` (n_beams,), ``psi_rad`` (n_range, n_beams) or None, ``ping``.
+        ``beam_angle_rad`` (n_beams,), ``psi_rad`` (n_range, n_beams) or None, ``ping``,
+        ``calibration``.
     """
     k = 0 if images.image.shape[0] == 1 else ping
     psi = images.psi_rad[k] if images.psi_rad is not None else None
     return {"image": images.image[k], "groups": tuple(images.groups),
             "range_m": np.asarray(images.range_m), "beam_angle_rad": np.asarray(images.beam_angle_rad),
-            "psi_rad": psi, "ping": int(ping)}
+            "psi_rad": psi, "ping": int(ping), "calibration": calibration}
 
 
-def image_figures(images, outdir: Path, *, ping: int = 0) -> list[Path]:
-    """fan_beam.png, image.png (I(r, θ)), range_profiles.png and phase.png for one ping.
+def image_figures(images, outdir: Path, *, ping: int = 0, tree=None) -> list[Path]:
+    """fan_beam.png and image.png (Sv), range_profiles.png (TS) and phase.png for one ping.
 
     ``images``: an :class:`~processing.imaging.images.Images` of that ping alone (titles say ``ping``)
-    or of every ping (``ping`` picks one)."""
-    return draw_image_figures(image_figure_data(images, ping=ping), outdir)
+    or of every ping (``ping`` picks one); ``tree``: the dataset they were formed from, for the
+    calibration (without it, or without a calibration in it, the scales are dB re max)."""
+    from abacus.figures.calibrated import echogram_calibration
+    cal = echogram_calibration(tree, images) if tree is not None else None
+    return draw_image_figures(image_figure_data(images, ping=ping, calibration=cal), outdir)
 
 
 @_titles_at_the_top
@@ -243,11 +289,12 @@ def draw_image_figures(data: dict, outdir: Path) -> list[Path]:
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
     img, groups, ping = data["image"], data["groups"], data["ping"]
-    r, th = data["range_m"], data["beam_angle_rad"]
-    paths = [_fan_figure(img, groups, ping, r, th, outdir), _image_figure(img, groups, r, th, outdir)]
-    fig, ax = plt.subplots(figsize=(9, 4))
-    fixed_layout(fig)
-    plot_range_profiles(ax, img[0], r, th)
+    r, th, cal = data["range_m"], data["beam_angle_rad"], data.get("calibration")
+    sv = [cell_db("sv", np.abs(im), r, cal, g) for g, im in enumerate(img)]
+    paths = [_fan_figure(sv, groups, ping, r, th, outdir), _image_figure(sv, groups, ping, r, th, outdir)]
+    fig, ax = plt.subplots(figsize=(6.5, 6.5))
+    fixed_layout(fig, left=0.8)
+    plot_range_profiles(ax, img[0], r, th, calibration=cal)
     ax.set_title(f"range profiles, subarray {groups[0]}, ping {ping}")
     paths.append(save(fig, outdir / "range_profiles.png"))
     plt.close(fig)
@@ -261,28 +308,37 @@ def draw_image_figures(data: dict, outdir: Path) -> list[Path]:
     return paths
 
 
-def _fan_figure(img, groups, ping, r, th, outdir: Path) -> Path:
+def _shared_span(values, dynamic_range_db: float = 50.0):
+    """One colour span for several images (e.g. both subarrays): they read alike."""
+    from abacus.figures.calibrated import colour_span_db
+    top = max((float(np.nanmax(v)) for v in values if np.isfinite(v).any()), default=0.0)
+    return colour_span_db([top], dynamic_range_db)
+
+
+def _fan_figure(sv, groups, ping, r, th, outdir: Path) -> Path:
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, len(groups), figsize=(5.5 * len(groups), 7), squeeze=False)
     fixed_layout(fig, left=0.7, right=0.9, wspace=0.5)
-    for ax, g, im in zip(axes[0], groups, img):
-        plot_fan(ax, np.abs(im), r, th, title=f"fan-beam image, subarray {g}, ping {ping}")
+    vmin, vmax = _shared_span([v for v, _ in sv])
+    for ax, g, (v, label) in zip(axes[0], groups, sv):
+        plot_fan(ax, v, r, th, vmin=vmin, vmax=vmax, label=label,
+                 title=f"fan-beam image, subarray {g}, ping {ping}")
     path = save(fig, outdir / "fan_beam.png")
     plt.close(fig)
     return path
 
 
-def _image_figure(img, groups, r, th, outdir: Path) -> Path:
+def _image_figure(sv, groups, ping, r, th, outdir: Path) -> Path:
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(1, len(groups), figsize=(5.5 * len(groups), 6), squeeze=False)
     fixed_layout(fig, left=0.7, right=0.2, wspace=0.35)
-    for ax, g, im in zip(axes[0], groups, img):
-        mag = np.abs(im)
-        m = _raster(ax, _db(mag, max(mag.max(), 1e-300)), r, th, vmin=-40, vmax=0)
+    vmin, vmax = _shared_span([v for v, _ in sv])
+    for ax, g, (v, label) in zip(axes[0], groups, sv):
+        m = _raster(ax, v, r, th, vmin=vmin, vmax=vmax)
         ax.set_xlabel("azimuth θ (deg)")
         ax.set_ylabel("range r (m)")
-        ax.set_title(f"I(r, θ), subarray {g}")
-        fig.colorbar(m, ax=ax).set_label("|I| (dB re max)")
+        ax.set_title(f"I(r, θ), subarray {g}, ping {ping}")
+        fig.colorbar(m, ax=ax).set_label(label)
     path = save(fig, outdir / "image.png")
     plt.close(fig)
     return path
@@ -315,18 +371,22 @@ def count_figure_data(tree, *, pings=(0,), max_pings: int = 5, counts: bool = Tr
     Returns
     -------
     dict
-        ``detections``: one dict per ping (``magnitude`` (n_range, n_beams) of image group 0,
-        ``range_m`` (n_range,), ``beam_angle_rad`` (n_beams,), ``ping_index``, ``fan_x_m`` and
-        ``fan_z_m`` (n_det,) and ``position_m`` (n_det, 3, sonar frame) of the detections,
-        ``in_volume`` (n_det,), ``truth_m`` (n_true, 3) or None, ``counting_range_m`` (2,),
+        ``detections``: one dict per ping (``values_db`` (n_range, n_beams): image group 0 in
+        uncompensated TS (dB re 1 m²; dB re max without a calibration), ``label`` (its colour
+        bar's), ``span_db`` (vmin, vmax) shared by the pings drawn, ``range_m`` (n_range,),
+        ``beam_angle_rad`` (n_beams,), ``ping_index``, ``fan_x_m`` and ``fan_z_m`` (n_det,) and
+        ``position_m`` (n_det, 3, sonar frame) of the detections, ``in_span`` and ``in_volume``
+        (n_det,), ``truth_m`` (n_true, 3) or None, ``counting_range_m`` (2,),
         ``azimuth_halfwidth_rad``, ``elevation_halfwidth_rad``); ``counts``: arrays of shape
         (n_pings,) (ping_index, counts, errors, density in m⁻³), or None.
     """
+    from abacus.figures.calibrated import colour_span_db, echogram_calibration
     from processing.base.dataset import TRUTH_GROUP
     from processing.records import counts_of, detections_of, figure_images
 
     pings = list(pings)[:max_pings]
     im = figure_images(tree, pings)
+    cal = echogram_calibration(tree, im) if pings else None
     det = {k: v.values for k, v in detections_of(tree).data_vars.items()}
     cnt = {k: v.values for k, v in counts_of(tree).variables.items()}
     truth = None
@@ -337,16 +397,20 @@ def count_figure_data(tree, *, pings=(0,), max_pings: int = 5, counts: bool = Tr
     volume = {"azimuth_halfwidth_rad": float(attrs["counting_azimuth_halfwidth_rad"]),
               "elevation_halfwidth_rad": float(attrs["counting_elevation_halfwidth_rad"]),
               "counting_range_m": tuple(float(v) for v in attrs["counting_range_m"])}
+    scaled = [cell_db("ts", np.abs(im.image[i, 0]), im.range_m, cal) for i in range(len(pings))]
+    span = colour_span_db([np.nanmax(v) if np.isfinite(v).any() else np.nan for v, _ in scaled], 50.0) \
+        if scaled else (-40.0, 0.0)
     out = []
     for i, p in enumerate(pings):
         k = det["ping"] == p
         ping_index = int(cnt["ping_index"][p])
-        out.append({"magnitude": np.abs(im.image[i, 0]), "range_m": np.asarray(im.range_m),
+        out.append({"values_db": scaled[i][0], "label": scaled[i][1], "span_db": span,
+                    "range_m": np.asarray(im.range_m),
                     "beam_angle_rad": np.asarray(im.beam_angle_rad), "ping_index": ping_index,
                     "fan_x_m": det["range_m"][k] * np.sin(det["azimuth_rad"][k]),
                     "fan_z_m": det["range_m"][k] * np.cos(det["azimuth_rad"][k]),
                     "position_m": np.stack([det["x_m"][k], det["y_m"][k], det["z_m"][k]], -1),
-                    "in_volume": det["in_volume"][k],
+                    "in_span": det["in_span"][k].astype(bool), "in_volume": det["in_volume"][k].astype(bool),
                     "truth_m": truth[1][truth[0] == ping_index] if truth is not None else None,
                     **volume})
     keys = ("ping_index", "true_in_volume", "count_before", "count_after", "error_before",
@@ -373,7 +437,7 @@ def draw_detection_figures(ds: list, outdir: Path) -> list[Path]:
     ----------
     ds : list of dict
         Entries of ``count_figure_data(...)["detections"]`` (arrays as documented there:
-        ``magnitude`` (n_range, n_beams), ``position_m`` (n_det, 3) in m, ...).
+        ``values_db`` (n_range, n_beams) in dB, ``position_m`` (n_det, 3) in m, ...).
     outdir : path
         Folder to write into (made if missing); each PNG is written atomically.
 
@@ -403,6 +467,15 @@ def draw_detection_figures(ds: list, outdir: Path) -> list[Path]:
     return paths
 
 
+def _span_outline(range_m, halfwidth_rad, n: int = 24):
+    """(x, z) of the counting span's outline in the fan's plane: two radials and two arcs."""
+    r0, r1 = range_m
+    t = np.linspace(-halfwidth_rad, halfwidth_rad, n)
+    th = np.r_[t, t[::-1], t[:1]]
+    rr = np.r_[np.full(n, r0), np.full(n, r1), [r0]]
+    return rr * np.sin(th), rr * np.cos(th)
+
+
 class _DetectionFigure:
     """The figure of detections_ping<k>.png: made for one ping exactly as a figure of its own,
     then shown for others (:meth:`show`) that :meth:`fits`."""
@@ -412,17 +485,28 @@ class _DetectionFigure:
 
     def __init__(self, d: dict):
         import matplotlib.pyplot as plt
-        fig, axes = plt.subplots(1, 3, figsize=(16, 6))
-        fixed_layout(fig, left=0.7, right=0.2, wspace=0.3)
+        fig, axes = plt.subplots(1, 3, figsize=(16, 7.4))
+        fixed_layout(fig, left=0.7, right=0.2, top=0.95, bottom=1.3, wspace=0.3)
         self.figure, self.axes, self._d = fig, axes, d
-        inside = d["in_volume"]
         # the fan's grid, from the axes' size before the colour bar and the equal aspect shrink
         # them, kept for every later ping
         self._pixel_m = _fan_pixel_m(axes[0], d["range_m"], d["beam_angle_rad"])
-        self._image = plot_fan(axes[0], d["magnitude"], d["range_m"], d["beam_angle_rad"],
-                               title=self._title(d), detections=(d["fan_x_m"], d["fan_z_m"]),
+        vmin, vmax = d["span_db"]
+        self._image = plot_fan(axes[0], d["values_db"], d["range_m"], d["beam_angle_rad"],
+                               vmin=vmin, vmax=vmax, label=d["label"], title=self._title(d),
                                pixel_m=self._pixel_m)
-        self._marks = axes[0].lines[0] if axes[0].lines else None
+        ax = axes[0]
+        r0, r1 = d["counting_range_m"]
+        ax.plot(*_span_outline(d["counting_range_m"], d["azimuth_halfwidth_rad"]), "--",
+                color="tab:orange", lw=1.0, label=f"counting span: r {r0:.1f}–{r1:.1f} m, "
+                      f"|θ| ≤ {np.degrees(d['azimuth_halfwidth_rad']):.1f}°")
+        span, out = d["in_span"], ~d["in_span"]
+        self._marks = (ax.plot(d["fan_x_m"][span], d["fan_z_m"][span], "o", mfc="none", mec="r",
+                               ms=9, mew=1.2, label="detection in the span")[0],
+                       ax.plot(d["fan_x_m"][out], d["fan_z_m"][out], "x", color="r", ms=7, mew=1.2,
+                               label="detection outside the span")[0])
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.09), fontsize=8, facecolor="0.85")
+        inside = d["in_volume"]
         pos, tp = d["position_m"], d["truth_m"]
         self._lines = []
         for k, i, j, lab in self.SIDES:
@@ -435,8 +519,9 @@ class _DetectionFigure:
                                ms=8, label="located, inside volume")
             self._lines.append((truth, outside, located))
             ax.set_xlabel(f"sonar {lab}")
-            ax.set_ylabel("sonar z (m)")
+            ax.set_ylabel("sonar z, along the boresight (m)")
             ax.grid(alpha=0.3)
+            ax.invert_yaxis()              # range grows downwards, as on an echogram
         rr = np.array(d["counting_range_m"])
         for ax, hw in ((axes[1], d["azimuth_halfwidth_rad"]), (axes[2], d["elevation_halfwidth_rad"])):
             for s in (-1, 1):
@@ -448,14 +533,18 @@ class _DetectionFigure:
 
     @staticmethod
     def _title(d) -> str:
-        n = d["in_volume"].size
-        return f"ping {d['ping_index']}: {n} detection{'' if n == 1 else 's'}"
+        n, n_span, n_vol = d["in_volume"].size, int(d["in_span"].sum()), int(d["in_volume"].sum())
+        return (f"ping {d['ping_index']}: {n} detection{'' if n == 1 else 's'}\n"
+                f"{n_span} in the counting span (○), {n - n_span} outside it (×);\n"
+                f"{n_vol} in the counting volume after interferometry")
 
     def fits(self, d: dict) -> bool:
-        """Whether ``d`` has this figure's image grid, counting volume and truth (or none)."""
+        """Whether ``d`` has this figure's image grid, colour scale, counting volume and truth
+        (or none)."""
         a = self._d
         return (np.array_equal(a["range_m"], d["range_m"])
                 and np.array_equal(a["beam_angle_rad"], d["beam_angle_rad"])
+                and tuple(a["span_db"]) == tuple(d["span_db"]) and a["label"] == d["label"]
                 and (a["truth_m"] is None) == (d["truth_m"] is None)
                 and all(np.array_equal(a[k], d[k]) for k in
                         ("counting_range_m", "azimuth_halfwidth_rad", "elevation_halfwidth_rad")))
@@ -463,17 +552,12 @@ class _DetectionFigure:
     def show(self, d: dict):
         """Show ping ``d`` (one that :meth:`fits`) instead of the one shown."""
         ax = self.axes[0]
-        self._image.set_data(_fan_raster(ax, d["magnitude"], d["range_m"], d["beam_angle_rad"],
-                                         self._pixel_m)[0])
+        self._image.set_data(_fan_raster(ax, d["values_db"], d["range_m"], d["beam_angle_rad"],
+                                         self._pixel_m, floor_db=d["span_db"][0])[0])
         ax.set_title(self._title(d))
-        if len(d["fan_x_m"]) and self._marks is not None:
-            self._marks.set_data(d["fan_x_m"], d["fan_z_m"])
-        elif len(d["fan_x_m"]):
-            self._marks = _mark_detections(ax, d["fan_x_m"], d["fan_z_m"])
-        elif self._marks is not None:      # a figure of its own has neither markers nor legend
-            self._marks.remove()
-            ax.get_legend().remove()
-            self._marks = None
+        span, out = d["in_span"], ~d["in_span"]
+        self._marks[0].set_data(d["fan_x_m"][span], d["fan_z_m"][span])
+        self._marks[1].set_data(d["fan_x_m"][out], d["fan_z_m"][out])
         inside, pos, tp = d["in_volume"], d["position_m"], d["truth_m"]
         for (k, i, j, _), (truth, outside, located) in zip(self.SIDES, self._lines):
             if truth is not None:
@@ -530,7 +614,7 @@ def counts_figure(c: dict):
     axes[0].plot(x, c["count_before"], line, color="tab:orange", label="detected in span (before interferometry)")
     axes[0].plot(x, c["count_after"], line, color="tab:green", label="counted in volume (after)")
     axes[0].set_ylabel("targets per ping (count)")
-    axes[0].set_xlabel("ping index")
+    axes[0].yaxis.set_major_locator(MaxNLocator(integer=True))     # whole targets
     axes[0].legend(fontsize=8)
     axes[0].grid(alpha=0.3)
     if "error_before" in c:
@@ -538,6 +622,7 @@ def counts_figure(c: dict):
         axes[1].plot(x, c["error_after"], line, color="tab:green", label="after interferometry")
         axes[1].axhline(0, color="k", lw=0.8)
         axes[1].set_ylabel("count error, counted − true (targets)")
+        axes[1].yaxis.set_major_locator(MaxNLocator(integer=True))
         axes[1].legend(fontsize=8)
     else:
         axes[1].plot(x, c["density_per_m3"], line, color="tab:green")

@@ -61,8 +61,9 @@ def track_figures(tree, outdir: Path) -> list[Path]:
     """tracks.png: the tracks of /Processing/Tracks in 3-D (world frame), seen from above (x–y)
     and from the side along each axis of the fan (x–z, y–z), the counting volume outlined at the
     first ping's pose; tracks through the volume in colour, the others thin grey; true paths of
-    the fish that passed through it dashed. track_ts.png: per-point compensated TS along each
-    counted track.
+    the fish that passed through it dashed. track_ts.png: each counted track's mean TS with the
+    spread of its detections' TS, against the true fish's TS where the dataset has it, and the
+    histogram of the detections' TS (:func:`_track_ts_figure`).
 
     Returns
     -------
@@ -104,7 +105,7 @@ def track_figures(tree, outdir: Path) -> list[Path]:
     fig = plt.figure(figsize=(15, 10))
     fixed_layout(fig, left=0.7, right=0.3, bottom=0.6, top=0.5, wspace=0.3, hspace=0.3)
     ax3 = fig.add_subplot(2, 2, 1, projection="3d")
-    views = [(fig.add_subplot(2, 2, 2), 0, 1, "seen from above"),
+    views = [(fig.add_subplot(2, 2, 2), 0, 1, "seen from above (x–y)"),
              (fig.add_subplot(2, 2, 3), 0, 2, "seen from the side (x–z)"),
              (fig.add_subplot(2, 2, 4), 1, 2, "seen from the side (y–z)")]
     lim = np.r_[outline, xyz[counted[pt]]] if counted.any() else outline
@@ -149,17 +150,69 @@ def track_figures(tree, outdir: Path) -> list[Path]:
     ax3.set_title(title, fontsize=9)
     paths = [save(fig, outdir / "tracks.png")]
     plt.close(fig)
-    fig, ax = plt.subplots(figsize=(10, 4.5))
-    fixed_layout(fig, left=0.8)
-    ts = ds["point_ts_comp"].values
-    ping = ds["point_ping_index"].values
-    for i in np.flatnonzero(counted):
-        k = (pt == i) & np.isfinite(ts)
-        ax.plot(ping[k], ts[k], ".-", color=colours(i % 20), lw=0.8, ms=4)
-    ax.set_xlabel("ping index")
-    ax.set_ylabel("TS, beam-compensated (dB re 1 m²)")
-    ax.set_title("per-ping TS along the tracks through the counting volume")
-    ax.grid(alpha=0.3)
-    paths.append(save(fig, outdir / "track_ts.png"))
-    plt.close(fig)
+    paths.append(_track_ts_figure(ds, counted, colours, outdir))
     return paths
+
+
+def _track_ts_figure(ds, counted, colours, outdir: Path) -> Path:
+    """track_ts.png: left, one row per counted track (in order of first ping): its mean TS
+    (σ_bs averaged in the linear domain, the dataset's ``track_ts``) with the 10–90 % range of its
+    detections' beam-compensated TS as a bar, the number of detections, and the true fish's TS
+    (``track_ts`` − ``track_ts_error``) where scored; right, the histogram of every detection's
+    TS on the counted tracks and of the tracks' means."""
+    import matplotlib.pyplot as plt
+
+    pt = ds["point_track"].values.astype(int)
+    ts = ds["point_ts_comp"].values
+    mean = ds["track_ts"].values
+    err = ds["track_ts_error"].values if "track_ts_error" in ds else None
+    first = ds["track_first_ping"].values
+    rows = [i for i in np.flatnonzero(counted) if np.isfinite(mean[i])]
+    rows.sort(key=lambda i: (first[i], i))
+    fig, (ax, hx) = plt.subplots(1, 2, figsize=(12, max(4.5, 1.6 + 0.22 * len(rows))),
+                                 gridspec_kw={"width_ratios": [3, 2]})
+    fixed_layout(fig, left=1.3, right=0.3, top=0.45, bottom=1.4, wspace=0.25)
+    every, ends = [], []
+    for y, i in enumerate(rows):
+        v = ts[(pt == i) & np.isfinite(ts)]
+        every.append(v)
+        lo, hi = np.percentile(v, [10, 90])
+        ends += [lo, hi, mean[i]] + ([mean[i] - err[i]] if err is not None else [])
+        c = colours(i % 20)
+        ax.plot([lo, hi], [y, y], "-", color=c, lw=2.5, alpha=0.6, solid_capstyle="butt")
+        ax.plot(mean[i], y, "o", color=c, ms=6)
+        if err is not None and np.isfinite(err[i]):
+            ax.plot(mean[i] - err[i], y, "k|", ms=11, mew=1.5)
+        ax.annotate(f"{v.size}", (max(hi, mean[i]), y), xytext=(4, 0), textcoords="offset points", va="center",
+                    fontsize=7, color="0.35")
+    ax.set_yticks(range(len(rows)), [f"{i} (pings {first[i]}–{ds['track_last_ping'].values[i]})"
+                                     for i in rows], fontsize=7)
+    ax.set_ylim(len(rows) - 0.5, -0.5)          # the first track on top, as a list reads
+    ax.set_ylabel("track (first–last ping)")
+    ax.set_xlabel("TS, beam-compensated (dB re 1 m²)")
+    ax.grid(alpha=0.3, axis="x")
+    from matplotlib.lines import Line2D
+    handles = [Line2D([], [], marker="o", ls="", color="0.3", label="track mean (σ_bs averaged)"),
+               Line2D([], [], lw=2.5, color="0.3", alpha=0.6, label="10–90 % of its detections"),
+               Line2D([], [], ls="", marker="$n$", color="0.35", label="number of detections")]
+    if err is not None:
+        handles.append(Line2D([], [], marker="|", ls="", color="k", ms=11, mew=1.5,
+                              label="true TS of the fish it follows"))
+    ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
+    ends = np.asarray(ends, float)
+    if np.isfinite(ends).any():
+        ax.set_xlim(np.nanmin(ends) - 1.0, np.nanmax(ends) + 2.0)    # room for the counts
+    ax.set_title(f"TS of the {len(rows)} tracks through the counting volume")
+    allts = np.concatenate(every) if every else np.zeros(0)
+    if allts.size:
+        bins = np.arange(np.floor(allts.min()), np.ceil(allts.max()) + 1.0, 1.0)
+        hx.hist(allts, bins=bins, color="0.6", label=f"detections on them ({allts.size})")
+        hx.hist(mean[rows], bins=bins, color="tab:blue", alpha=0.8, label=f"track means ({len(rows)})")
+        hx.legend(fontsize=8)
+    hx.set_xlabel("TS, beam-compensated (dB re 1 m²)")
+    hx.set_ylabel("number (per 1 dB)")
+    hx.set_title("TS histogram, tracks through the counting volume")
+    hx.grid(alpha=0.3)
+    path = save(fig, outdir / "track_ts.png")
+    plt.close(fig)
+    return path

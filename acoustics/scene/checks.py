@@ -5,9 +5,57 @@ import math
 
 import numpy as np
 
-from acoustics.scene.targets_spec import SectorPopulation
+from acoustics.scene.targets_spec import SchoolPopulation, SectorPopulation
 
-__all__ = ["cross_check"]
+__all__ = ["cross_check", "school_optical_depth", "SINGLE_SCATTERING_DEPTH"]
+
+#: optical depth n σ_e L through a school beyond which single scattering no longer holds
+#: (docs/scenes.md, "Single scattering and dense schools")
+SINGLE_SCATTERING_DEPTH = 0.1
+
+
+def _extinction_cross_section_m2(backscatter) -> float:
+    """A target's extinction cross-section σ_e (m²): a swimbladder (pressure-release prolate
+    spheroid, k b ≫ 1) removes twice its largest shadow, 2 π a b (the extinction paradox of a
+    large obstacle, Morse & Ingard 1968, §8.3); a point reflector of backscattering cross-section
+    σ_bs scattering isotropically removes σ_s = 4π σ_bs."""
+    model = backscatter.model
+    if model == "swimbladder":
+        return 2.0 * math.pi * (backscatter.length_m / 2) * (backscatter.width_m / 2)
+    if model == "unit":
+        sigma_bs = 1.0
+    elif model == "fixed":
+        sigma_bs = 10.0 ** (backscatter.ts_db / 10.0)
+    else:      # Rayleigh amplitude of scale s: E[ρ²] = 2 s² (untruncated), bounded by hi²
+        sigma_bs = min(2.0 * backscatter.scale_m ** 2, backscatter.hi_m ** 2)
+    return 4.0 * math.pi * sigma_bs
+
+
+def school_optical_depth(pop, sonar_position_m) -> tuple[float, float, float, float]:
+    """Optical depth τ = n σ_e L of a school along the sonar's line of sight to its centre.
+
+    Parameters
+    ----------
+    pop : SchoolPopulation
+    sonar_position_m : sequence of 3 floats
+        The sonar's position (m, world frame).
+
+    Returns
+    -------
+    tau, density_per_m3, sigma_e_m2, chord_m : float
+        τ (dimensionless), the number density n (m⁻³), the extinction cross-section σ_e (m²) and
+        the chord L (m) of the school's ellipsoid through its centre along the line of sight.
+    """
+    n = pop.count / pop.volume_m3 if pop.count is not None else pop.density_per_m3
+    u = np.asarray(pop.center_m, float) - np.asarray(sonar_position_m, float)
+    norm = float(np.linalg.norm(u))
+    u = u / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
+    h = math.radians(pop.heading)
+    axes = np.array([[math.cos(h), math.sin(h), 0.0], [-math.sin(h), math.cos(h), 0.0], [0.0, 0.0, 1.0]])
+    # chord through the centre of x²/a² + y²/b² + z²/c² = 1 along u: 2 / |u / semi-axes|
+    chord = 2.0 / float(np.linalg.norm((axes @ u) / np.asarray(pop.semi_axes_m, float)))
+    sigma_e = _extinction_cross_section_m2(pop.backscatter)
+    return n * sigma_e * chord, n, sigma_e, chord
 
 
 def cross_check(scene, *, notes: list | None = None) -> list[tuple[str, str]]:
@@ -65,6 +113,16 @@ def cross_check(scene, *, notes: list | None = None) -> list[tuple[str, str]]:
             out.append((f"target at {r:.3g} m is beyond the last range whose whole echo is "
                         f"recorded ({r_max:.3g} m)", key))
     for i, p in enumerate(scene.targets.populations):
+        if isinstance(p, SchoolPopulation):
+            tau, n, sig, chord = school_optical_depth(p, scene.sonar.pose.position_m)
+            if tau > SINGLE_SCATTERING_DEPTH:
+                name = f"'{p.label}'" if p.label else f"{i}"
+                out.append((f"school {name} is too dense for single scattering: {n:.3g} fish/m³ × "
+                            f"extinction cross-section {sig:.2g} m² × {chord:.3g} m through it = "
+                            f"{tau:.2g} > {SINGLE_SCATTERING_DEPTH:g}, so its far side's echo loses "
+                            f"{20 * math.log10(math.e) * tau:.1f} dB two-way and multiple scattering, "
+                            f"which abacus leaves out, is of that order (docs/scenes.md)",
+                            f"targets.populations[{i}]"))
         if isinstance(p, SectorPopulation) and p.range_m[0] < blind:
             out.append((f"population reaches into the blind zone (< {blind:.3g} m)",
                         f"targets.populations[{i}].range_m"))

@@ -62,12 +62,17 @@ def provenance_dataset(scene, seed: int, log, rays_cast: dict | None = None) -> 
         PROVENANCE_GROUP,
         {"stage_seconds": np.array([log.seconds[k] for k in names]),
          "stage_calls": np.array([log.calls[k] for k in names]),
-         "stage": np.array(names, dtype=str)},
+         "stage": np.array(names, dtype=str),
+         "source_filenames": [str(scene.source_path or scene.name)], "filenames": [0]},
         attrs={"scene_text": scene.resolved_text(), "scene_sha256": scene.sha256(),
                "scene_file": str(scene.source_path or ""), "seed": int(seed),
                "stages_run": ",".join(names), "versions": json.dumps(versions()),
                "rays_cast_json": json.dumps(rays_cast or {}),
-               "command": " ".join(sys.argv)})
+               "command": " ".join(sys.argv),
+               # what echopype's Provenance holds (combine_echodata reads it)
+               "conversion_software_name": "abacus",
+               "conversion_software_version": str(versions().get("abacus", "")),
+               "conversion_time": _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()})
 
 
 def _ping_times(scene, pings):

@@ -23,7 +23,7 @@ __all__ = ["single_targets"]
 
 
 def single_targets(ping_rows, range_m, azimuth_rad, amplitude, *, range_resolution_m: float,
-                   azimuth_resolution_rad: float, sidelobe_db: float):
+                   azimuth_resolution_rad: float, sidelobe_db: float, same_cell: bool = True):
     """Which detections are single targets rather than another's sidelobe or a second peak of
     the same echo.
 
@@ -42,6 +42,13 @@ def single_targets(ping_rows, range_m, azimuth_rad, amplitude, *, range_resoluti
     range_m, azimuth_rad, amplitude : array_like, shape (n,)
         Range (m), azimuth (rad), image peak (counts).
     range_resolution_m, azimuth_resolution_rad, sidelobe_db : float
+    same_cell : bool
+        Also drop the weaker of two detections in one resolution cell (the tracker's rule: a
+        second peak of the same echo). False keeps only the sidelobe test, for the echosounder
+        criteria (:mod:`processing.backscatter.echo_criteria`), which judge such pairs by their
+        echoes, and for the tracker with its resolution gate, which keeps such a peak from
+        starting a track but lets a fish side by side with a stronger one be followed
+        (processing/tracking/filters.py).
 
     Returns
     -------
@@ -61,8 +68,10 @@ def single_targets(ping_rows, range_m, azimuth_rad, amplitude, *, range_resoluti
         # and either in its cell or far above it
         stronger = a[k][:, None] > a[k][None, :]
         near = np.abs(r[k][:, None] - r[k][None, :]) <= 2.5 * range_resolution_m
-        same_cell = ((np.abs(az[k][:, None] - az[k][None, :]) <= 1.5 * azimuth_resolution_rad)
-                     & (np.abs(r[k][:, None] - r[k][None, :]) <= range_resolution_m))
+        cell = ((np.abs(az[k][:, None] - az[k][None, :]) <= 1.5 * azimuth_resolution_rad)
+                & (np.abs(r[k][:, None] - r[k][None, :]) <= range_resolution_m))
         far_above = a[k][:, None] > ratio * a[k][None, :]
-        keep[k] = ~np.any(stronger & near & (same_cell | far_above), axis=0)
+        if not same_cell:
+            cell = np.zeros_like(cell)
+        keep[k] = ~np.any(stronger & near & (cell | far_above), axis=0)
     return keep

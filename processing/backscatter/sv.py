@@ -28,7 +28,7 @@ from processing.base.contract import SV_GROUP
 from processing.base.dataset import DatasetError
 
 __all__ = ["sv_cells", "sv_db", "mean_volume_backscatter", "nasc", "backscatter", "SV_GROUP",
-           "write_mvbs_csv", "write_nasc_csv", "LayerError"]
+           "write_mvbs_csv", "write_nasc_csv", "write_cells_csv", "EMPTY_VALUES", "LayerError"]
 
 NMI_M = 1852.0
 
@@ -191,7 +191,8 @@ def _check_layers(layers, range_m, shape, range_bin_m: float, ping_bin: int,
 
 
 def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int = 10,
-                layers_m=None, image_group: str | None = None, max_memory_gb: float | None = None):
+                layers_m=None, image_group: str | None = None, max_memory_gb: float | None = None,
+                cells: bool = False):
     """Sv products of a dataset: MVBS on a (ping bin, range bin, beam) grid and NASC of range
     layers per ping and beam, written to /Processing/Sv.
 
@@ -212,6 +213,16 @@ def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int 
     max_memory_gb : float, optional
         The memory limit the MVBS grid must fit (default:
         :func:`processing.base.resources.memory_limit_bytes`).
+    cells : bool
+        Also keep every cell: ``Sv`` (dB, NaN where noise only) and ``s_v`` (m⁻¹, linear, may be
+        negative after noise subtraction: average *this* elsewhere) on (ping_row, range_cell,
+        beam), with ``cell_range_m``. Always kept for a Simrad power record.
+
+    An EK60 power record converted by echopype (:mod:`processing.base.echosounder`) is
+    calibrated sample by sample with the Simrad/echopype equation
+    (:mod:`processing.backscatter.ek60`): each channel is one beam, its cells the samples, the
+    MVBS bins start at 0 m of ``echo_range`` and skip samples without Sv. An EK80 file is
+    refused by name (echopype calibrates it).
 
     Returns
     -------
@@ -234,7 +245,13 @@ def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int 
     from processing.detection.noise import NoiseEstimateError
     from processing.imaging.beamforming import SubarrayGeometry
     from processing.imaging.compression import RangeFilter
+    from processing.base.dataset import as_tree
+    from processing.base.echosounder import is_power_record
     from processing.pipeline import RecordChain
+    tree = as_tree(tree)
+    if is_power_record(tree):
+        return _power_backscatter(tree, range_bin_m=range_bin_m, ping_bin=ping_bin, layers_m=layers_m,
+                                  max_memory_gb=max_memory_gb)
     chain = RecordChain(tree, settings)
     tree, st = chain.tree, chain.settings
     group = image_group or st.detect.image_group
@@ -262,6 +279,12 @@ def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int 
     layers = np.asarray(layers_m if layers_m is not None else [[im.range_m[0], im.range_m[-1] + 1e-9]],
                         float).reshape(-1, 2)
     _check_layers(layers, im.range_m, mags.shape, range_bin_m, ping_bin, max_memory_gb)
+    if cells:        # Sv, s_v and their ranges, float64, and the dB copy made on the way
+        from processing.base.resources import Estimate, check_resources
+        size = float(mags.size) * 8.0 * 4
+        check_resources(Estimate(size, 0.0, [("Sv cells", size)],
+                                 keys="the pings (the cells of every ping are kept: give fewer pings)"),
+                        what="the Sv cells (--cells)", max_memory_gb=max_memory_gb)
     grid, r_edges, p_edges = mean_volume_backscatter(s_v, im.range_m, range_bin_m=range_bin_m,
                                                      ping_bin=ping_bin)
     area = nasc(s_v, im.range_m, layers)
@@ -275,11 +298,105 @@ def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int 
          "layer_start_m": ("layer", layers[:, 0]), "layer_stop_m": ("layer", layers[:, 1]),
          "beam_angle_deg": ("beam", beams)},
         attrs={"image_group": group, "noise_sigma_counts": float(sigma),
-               "range_energy_width_m": l_r, "range_bin_m": float(range_bin_m), "ping_bin": int(ping_bin)})
+               "range_energy_width_m": l_r, "range_bin_m": float(range_bin_m), "ping_bin": int(ping_bin),
+               "calibration_gain_counts_m": float(cal.gain_counts_m),
+               "absorption_db_per_m": float(cal.absorption_db_per_m),
+               "sound_speed_m_s": float(rec.sound_speed_m_s), "center_frequency_hz": float(rec.center_frequency_hz)})
+    ds["solid_angle_sr"] = ("beam", np.asarray(psi, float))
+    ds["solid_angle_sr"].attrs.update(units="sr", long_name="two-way equivalent solid angle of each beam (Ψ_b)")
     ds["Sv_mean"].attrs.update(units="dB re 1 m-1", nan_means="noise only (s_v ≤ 0 after noise subtraction)")
     ds["s_v_mean"].attrs["units"] = "m-1"
     ds["NASC"].attrs.update(units="m2 nmi-2", long_name="4π 1852² ∫ s_v dr along the beam over the layer")
+    if cells:
+        _add_cells(ds, s_v, np.broadcast_to(np.asarray(im.range_m, float)[None, :, None], s_v.shape))
     out = tree.copy()
+    out[SV_GROUP] = xr.DataTree(ds)
+    return out
+
+
+def _add_cells(ds, s_v, cell_range_m) -> None:
+    """Every cell's Sv (dB) and s_v (linear) on (ping_row, range_cell, beam), with its range."""
+    dims = ("ping_row", "range_cell", "beam")
+    ds["Sv"] = (dims, sv_db(s_v))
+    ds["Sv"].attrs.update(units="dB re 1 m-1", long_name="volume backscattering strength of each cell",
+                          nan_means="no Sv: s_v <= 0 after noise subtraction (average s_v, not Sv)")
+    ds["s_v"] = (dims, np.asarray(s_v, float))
+    ds["s_v"].attrs.update(units="m-1", long_name="volume backscattering coefficient of each cell (linear; "
+                           "negative where noise subtraction leaves less than nothing)",
+                           nan_means="no sample (before the time-varied gain starts or past the ping's end)")
+    ds["cell_range_m"] = (dims, np.ascontiguousarray(cell_range_m, float))
+    ds["cell_range_m"].attrs.update(units="m", nan_means="no sample")
+
+
+def _grid_cells(s_v, cell_range_m, edges, ping_edges) -> np.ndarray:
+    """Mean s_v of the finite cells of each (ping bin, range bin, beam), cells binned by their
+    own range (left-closed bins); NaN for a bin with none. Shapes: s_v and cell_range_m
+    (n_pings, n_cells, n_beams); returns (n_ping_bins, n_range_bins, n_beams)."""
+    n_rb = edges.size - 1
+    out = np.full((ping_edges.size - 1, n_rb, s_v.shape[2]), np.nan)
+    ok = np.isfinite(s_v) & np.isfinite(cell_range_m)
+    which = np.clip(np.searchsorted(edges, np.where(ok, cell_range_m, 0.0), side="right") - 1, 0, n_rb - 1)
+    for k in range(ping_edges.size - 1):
+        rows = slice(ping_edges[k], ping_edges[k + 1])
+        for b in range(s_v.shape[2]):
+            m = ok[rows, :, b]
+            w = which[rows, :, b][m]
+            sums = np.bincount(w, weights=s_v[rows, :, b][m], minlength=n_rb)
+            count = np.bincount(w, minlength=n_rb)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                out[k, :, b] = np.where(count > 0, sums / np.maximum(count, 1), np.nan)
+    return out
+
+
+def _power_backscatter(tree, *, range_bin_m: float, ping_bin: int, layers_m, max_memory_gb):
+    """:func:`backscatter` of a Simrad power record (each channel one beam, each sample a cell)."""
+    import xarray as xr
+
+    from processing.backscatter.ek60 import CSV_TERMS, sv_of_power
+    from processing.base.dataset import source_of
+    from processing.base.echosounder import annotate_missing, read_power_record
+    from processing.base.resources import Estimate, check_resources
+    rec = read_power_record(tree, source=source_of(tree))
+    sv, r = sv_of_power(rec)                                   # (channel, ping, sample)
+    sv, r = sv.transpose(1, 2, 0), r.transpose(1, 2, 0)        # (ping, cell, beam)
+    with np.errstate(over="ignore"):
+        s_v = np.where(np.isfinite(sv), 10.0 ** (sv / 10.0), np.nan)
+    top = float(np.nanmax(r)) if np.isfinite(r).any() else 0.0
+    n_rb = max(1, int(np.ceil(top / range_bin_m + 1e-9)))
+    grid_bytes = -(-sv.shape[0] // int(ping_bin)) * n_rb * sv.shape[2] * 8.0 * 6
+    check_resources(Estimate(grid_bytes, 0.0, [("MVBS grid", grid_bytes)],
+                             keys=f"the MVBS range bins ({range_bin_m:g} m over {top:.3g} m; give a larger range bin)"),
+                    what="the Sv grid", max_memory_gb=max_memory_gb)
+    edges = range_bin_m * np.arange(n_rb + 1)
+    pe = np.r_[np.arange(0, sv.shape[0], int(ping_bin)), sv.shape[0]]
+    grid = _grid_cells(s_v, r, edges, pe)
+    layers = np.asarray(layers_m if layers_m is not None else [[0.0, top + 1e-9]], float).reshape(-1, 2)
+    dr = (rec.sample_interval_s * rec.sound_speed_m_s / 2.0).T          # (ping, beam)
+    area = np.zeros((sv.shape[0], layers.shape[0], sv.shape[2]))
+    for i, (a, b) in enumerate(layers):
+        inside = np.isfinite(s_v) & (r >= a) & (r < b)
+        if not inside.any():
+            raise LayerError(f"layer {a:g}–{b:g} m holds no sample with Sv: the record covers "
+                             f"0–{top:.3f} m", i)
+        area[:, i] = 4 * np.pi * NMI_M**2 * np.where(inside, s_v, 0.0).sum(axis=1) * dr
+    ds = xr.Dataset(
+        {"Sv_mean": (("ping_bin", "range_bin", "beam"), sv_db(grid)),
+         "s_v_mean": (("ping_bin", "range_bin", "beam"), grid),
+         "NASC": (("ping_row", "layer", "beam"), area),
+         "range_bin_start_m": ("range_bin", edges[:-1]), "range_bin_stop_m": ("range_bin", edges[1:]),
+         "ping_bin_first_row": ("ping_bin", pe[:-1]), "ping_bin_last_row": ("ping_bin", pe[1:] - 1),
+         "layer_start_m": ("layer", layers[:, 0]), "layer_stop_m": ("layer", layers[:, 1]),
+         "beam_angle_deg": ("beam", np.zeros(sv.shape[2]))},
+        coords={"beam": rec.channel},
+        attrs={"image_group": "", "noise_sigma_counts": 0.0, "range_bin_m": float(range_bin_m),
+               "ping_bin": int(ping_bin), "calibration": f"{rec.model} power: Sv = P_r + 20 log10 r' + 2 α r' − "
+               f"({CSV_TERMS}) − 2 S_a (processing/backscatter/ek60.py)"})
+    ds["Sv_mean"].attrs.update(units="dB re 1 m-1", nan_means="no sample with Sv in the bin")
+    ds["s_v_mean"].attrs.update(units="m-1", nan_means="no sample with Sv in the bin")
+    ds["NASC"].attrs.update(units="m2 nmi-2", long_name="4π 1852² ∫ s_v dr along the beam over the layer")
+    _add_cells(ds, s_v, r)
+    ds["Sv"].attrs["nan_means"] = "no Sv: before the time-varied gain starts (r' <= 0) or past the ping's end"
+    out = annotate_missing(tree)
     out[SV_GROUP] = xr.DataTree(ds)
     return out
 
@@ -288,7 +405,7 @@ def backscatter(tree, settings=None, *, range_bin_m: float = 0.5, ping_bin: int 
 sv = backscatter
 
 
-def _write_rows(path, header, rows):
+def _write_rows(path, header, rows, empty: str = ""):
     import csv
     from pathlib import Path
 
@@ -298,15 +415,26 @@ def _write_rows(path, header, rows):
         w = csv.writer(fh)
         w.writerow(header)
         for r in rows:
-            w.writerow(["" if isinstance(x, float) and not np.isfinite(x) else
+            w.writerow([empty if isinstance(x, float) and not np.isfinite(x) else
                         (f"{x:.9g}" if isinstance(x, float) else x) for x in r])
     return path
 
 
-def write_mvbs_csv(tree, path):
+#: what an empty cell (no Sv) is written as in the CSV exports: a blank, or Echoview's −999
+EMPTY_VALUES = {"blank": "", "-999": "-999"}
+
+
+def _empty(empty: str) -> str:
+    if empty not in EMPTY_VALUES:
+        raise ValueError(f"empty must be one of {', '.join(EMPTY_VALUES)}, not {empty!r}")
+    return EMPTY_VALUES[empty]
+
+
+def write_mvbs_csv(tree, path, *, empty: str = "blank"):
     """One row per MVBS cell of /Processing/Sv (columns close to Echoview's integration-by-cells
     export: Interval, Ping_S, Ping_E, Layer, Range_start, Range_stop (m), Beam_angle (deg),
-    Sv_mean (dB re 1 m⁻¹, empty where the cell holds noise only), s_v_mean (m⁻¹)); atomic."""
+    Sv_mean (dB re 1 m⁻¹), s_v_mean (m⁻¹)); atomic. A cell without Sv (noise only, no sample)
+    is written blank, or −999 as Echoview writes it (``empty="-999"``)."""
     ds = tree[SV_GROUP].ds
     sv, lin = ds["Sv_mean"].values, ds["s_v_mean"].values
     rows = []
@@ -317,7 +445,29 @@ def write_mvbs_csv(tree, path):
                              float(ds["range_bin_start_m"][j]), float(ds["range_bin_stop_m"][j]),
                              float(ds["beam_angle_deg"][b]), float(sv[i, j, b]), float(lin[i, j, b])])
     return _write_rows(path, ["Interval", "Ping_S", "Ping_E", "Layer", "Range_start", "Range_stop",
-                              "Beam_angle", "Sv_mean", "s_v_mean"], rows)
+                              "Beam_angle", "Sv_mean", "s_v_mean"], rows, _empty(empty))
+
+
+def write_cells_csv(tree, path, *, empty: str = "blank"):
+    """One row per cell of /Processing/Sv (kept with ``cells=True``, always for a Simrad
+    record): Ping, Range (m), Beam (its angle in deg, or the channel), Sv (dB re 1 m⁻¹, blank or
+    −999 where there is none) and s_v (m⁻¹, linear: the value to average); atomic.
+
+    Raises
+    ------
+    DatasetError
+        /Processing/Sv holds no cells (made without ``cells``).
+    """
+    ds = tree[SV_GROUP].ds
+    if "s_v" not in ds:
+        raise DatasetError(f"/{SV_GROUP} holds no cells: make it with cells=True (abacus sv --cells)")
+    sv, lin, rng = ds["Sv"].values, ds["s_v"].values, ds["cell_range_m"].values
+    beams = (ds["beam"].values.astype(str) if "beam" in ds.coords
+             else [f"{x:.9g}" for x in ds["beam_angle_deg"].values])
+    rows = [[p, float(rng[p, j, b]), beams[b], float(sv[p, j, b]), float(lin[p, j, b])]
+            for p in range(sv.shape[0]) for b in range(sv.shape[2]) for j in range(sv.shape[1])
+            if np.isfinite(rng[p, j, b])]
+    return _write_rows(path, ["Ping", "Range", "Beam", "Sv", "s_v"], rows, _empty(empty))
 
 
 def write_nasc_csv(tree, path):

@@ -1,8 +1,12 @@
-"""The single-target table of a dataset and its CSV export (Echoview-like columns).
+"""The single-target tables of a dataset and their CSV exports (Echoview-like columns).
 
-The verdict and TS of each detection come from the chain
-(:meth:`processing.pipeline.RecordChain.single_targets`, the rules in
-:mod:`processing.backscatter.single_targets`); this module gives them as a table and a file.
+Two verdicts, two tables:
+
+* :func:`single_targets` (``processing.single_targets``, ``abacus targets``): single-target
+  detection by the echosounder criteria (:mod:`processing.backscatter.echo_criteria`, the
+  ``single_target`` settings), every candidate a row with the rule that rejected it;
+* :func:`single_target_table` (``abacus count --targets-csv``, the tracker's input): the
+  sidelobe rule and ``track.min_ts_db`` (:mod:`processing.backscatter.single_targets`).
 """
 from __future__ import annotations
 
@@ -11,7 +15,8 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-__all__ = ["single_target_table", "write_single_targets_csv", "SINGLE_TARGET_COLUMNS"]
+__all__ = ["single_target_table", "write_single_targets_csv", "SINGLE_TARGET_COLUMNS", "single_targets",
+           "write_targets_csv", "TARGET_COLUMNS"]
 
 
 def single_target_table(tree: xr.DataTree, settings=None) -> xr.Dataset:
@@ -95,3 +100,119 @@ def write_single_targets_csv(tree: xr.DataTree, path, settings=None) -> Path:
                     row.append("" if not np.isfinite(x) else f"{float(x):.9g}")
             w.writerow(row)
     return path
+
+
+#: detections columns a single-target row carries (where the detections table has them)
+_POSITION = ("ping", "ping_index", "range_m", "azimuth_rad", "elevation_rad", "x_m", "y_m", "z_m",
+             "world_x_m", "world_y_m", "world_z_m", "amplitude", "snr_db")
+
+_UNITS = {
+    "ts_uncomp_db": ("dB re 1 m2", "TS taken on axis (uncompensated)"),
+    "ts_comp_db": ("dB re 1 m2", "TS compensated for the two-way beam pattern at the located position"),
+    "beam_pattern_db": ("dB re axis", "two-way beam pattern at the located position (near field included "
+                        "when single_target.near_field)"),
+    "beam_compensation_db": ("dB", "one-way beam compensation: -beam_pattern_db / 2"),
+    "echo_length_m": ("m", "width of the matched-filter envelope between its -6 dB points"),
+    "echo_length": ("1", "echo length over the nominal (compressed) pulse's"),
+    "phase_deviation_deg": ("arc_degree", "standard deviation of psi_AB within the echo (electrical)"),
+    "angle_deviation_deg": ("arc_degree", "standard deviation of the elevation within the echo"),
+    "echo_spacing": ("1", "range to the nearest other echo in the beam, in nominal pulse lengths"),
+}
+
+
+def single_targets(tree, settings=None) -> xr.Dataset:
+    """Single-target detection by the echosounder criteria: every detection a candidate, its
+    measures, TS and the rule that rejected it.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree, str or Path
+        A dataset following the data contract (with samples; detected here unless it holds
+        /Processing/Detections already).
+    settings : ProcessingSettings, dict or path, optional
+        The ``single_target`` section sets the criteria (:class:`processing.settings.SingleTargetSettings`);
+        default: the dataset's own processing settings.
+
+    Returns
+    -------
+    xarray.Dataset
+        Dim ``target`` (one row per candidate): ``ping`` (row in the file), ``ping_index``,
+        ``range_m``, ``azimuth_rad``, ``elevation_rad``, ``x_m``/``y_m``/``z_m`` (sonar frame),
+        ``world_*_m``, ``ts_uncomp_db``, ``ts_comp_db`` (dB re 1 m²; NaN without a
+        calibration, TS_comp NaN beyond the compensable beam), ``beam_pattern_db``,
+        ``beam_compensation_db``, ``echo_length_m``, ``echo_length``, ``phase_deviation_deg``,
+        ``angle_deviation_deg`` (NaN outside interferometric mode), ``echo_spacing`` (inf
+        alone in its beam), ``rejected_by`` (str, "" for a single target: one of
+        :data:`processing.backscatter.echo_criteria.RULES`) and ``single_target`` (bool).
+        Attributes: the criteria as SONAR-netCDF4 2.0 ``param_*`` names, the nominal echo
+        length (m) and the count of single targets.
+    """
+    from processing.pipeline import RecordChain
+    from processing.settings import SONAR_NETCDF4_PARAMETERS
+    chain = RecordChain(tree, settings)
+    detected = chain.detected()
+    cols = chain.target_detection(detected)
+    det = detected.table
+    dims = ("target",)
+    data = {k: (dims, np.asarray(det[k])) for k in _POSITION if k in det}
+    if "ping_index" not in data and "ping" in det:
+        data["ping_index"] = (dims, chain.ping_index[np.asarray(det["ping"], int)])
+    for k, v in cols.items():
+        data[k] = (dims, np.asarray(v))
+    out = xr.Dataset(data)
+    for k, (units, long_name) in _UNITS.items():
+        out[k].attrs.update(units=units, long_name=long_name)
+    sts = chain.settings.single_target
+    attrs = {name: (float("nan") if getattr(sts, field) is None else float(getattr(sts, field)))
+             for field, (name, _) in SONAR_NETCDF4_PARAMETERS.items()}
+    attrs.update(nominal_echo_length_m=float(chain.nominal_echo_length_m),
+                 echo_length_level_db=float(sts.echo_length_level_db),
+                 near_field_compensated=int(sts.near_field),
+                 single_target_count=int(np.count_nonzero(cols["single_target"])))
+    out.attrs.update(attrs)
+    return out
+
+
+#: CSV column -> single_targets() variable: Echoview's single-target export names where one exists
+TARGET_COLUMNS = (
+    ("Ping_index", "ping_index"), ("Target_range", "range_m"), ("Angle_azimuth_deg", "azimuth_rad"),
+    ("Angle_elevation_deg", "elevation_rad"), ("Target_x_m", "x_m"), ("Target_y_m", "y_m"),
+    ("Target_z_m", "z_m"), ("Target_world_x_m", "world_x_m"), ("Target_world_y_m", "world_y_m"),
+    ("Target_world_z_m", "world_z_m"), ("TS_uncomp", "ts_uncomp_db"), ("TS_comp", "ts_comp_db"),
+    ("Beam_compensation_db", "beam_compensation_db"), ("Echo_length_m", "echo_length_m"),
+    ("Echo_length_normalised", "echo_length"), ("Phase_deviation_deg", "phase_deviation_deg"),
+    ("Angle_deviation_deg", "angle_deviation_deg"), ("Echo_spacing", "echo_spacing"),
+    ("SNR_db", "snr_db"), ("Rejected_by", "rejected_by"))
+
+
+def write_targets_csv(table: xr.Dataset, path, *, accepted_only: bool = False) -> Path:
+    """Write a :func:`single_targets` table as CSV (columns :data:`TARGET_COLUMNS`, angles in
+    degrees, lengths in m, TS in dB re 1 m², empty where not finite — NaN, or an echo spacing of
+    inf for an echo alone in its beam — and ``Rejected_by`` empty for a single target),
+    atomically; ``accepted_only`` keeps the single targets only."""
+    import csv
+
+    from processing.base.atomic import staged
+    keep = (table["single_target"].values.astype(bool) if accepted_only
+            else np.ones(table.sizes.get("target", 0), bool))
+    cols = [(name, var) for name, var in TARGET_COLUMNS if var in table]
+    values = {}
+    for name, var in cols:
+        v = table[var].values[keep]
+        values[name] = np.degrees(v) if var.endswith("_rad") else v
+    path = Path(path)
+    with staged(path) as tmp, open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow([name for name, _ in cols])
+        for i in range(int(keep.sum())):
+            w.writerow([_cell(values[name][i]) for name, _ in cols])
+    return path
+
+
+def _cell(x):
+    a = np.asarray(x)
+    if a.dtype.kind in "US":
+        return str(x)
+    if np.issubdtype(a.dtype, np.integer):
+        return int(x)
+    return "" if not np.isfinite(x) else f"{float(x):.9g}"

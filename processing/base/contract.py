@@ -265,6 +265,10 @@ _PROVENANCE = Group(f"/{PROVENANCE_GROUP}", "what made the data (simulated data)
        long_name="wall time per stage"),
     _v("stage_calls", "stage", "1", "i", "times each stage was entered"),
     _c("stage", "stage", None, "U", "the stages that ran"),
+    _v("source_filenames", "filenames", None, "U",
+       "the file the data came from (the scene file, or the recording converted), as echopype's "
+       "Provenance holds it (its combine_echodata reads it)"),
+    _c("filenames", "filenames", None, "i", "index of the source files"),
 ), (
     Attribute("scene_text", "the fully resolved scene (YAML)"),
     Attribute("scene_sha256", "its SHA-256"),
@@ -274,6 +278,9 @@ _PROVENANCE = Group(f"/{PROVENANCE_GROUP}", "what made the data (simulated data)
     Attribute("stages_run", "the stages that ran, comma-separated"),
     Attribute("rays_cast_json", "rays cast per purpose (JSON)"),
     Attribute("command", "the command line"),
+    Attribute("conversion_software_name", "what wrote the file (abacus), as echopype's Provenance says it"),
+    Attribute("conversion_software_version", "its version"),
+    Attribute("conversion_time", "when (ISO 8601, UTC)"),
 ))
 
 _SONAR = Group(f"/{SONAR_GROUP}", "the sonar: pulse, transmitter, calibration, beam groups", (

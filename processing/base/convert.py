@@ -32,12 +32,12 @@ import numpy as np
 import xarray as xr
 
 from processing.base.contract import (BEAM_GROUP_NAME, CHANNEL, ELEMENT_GROUP, ENVIRONMENT_GROUP, GROUPS,
-                                      LEGACY_ELEMENT_GROUP, LEGACY_TRUTH_GROUP, ROOT_GROUP, SONAR_GROUP,
+                                      LEGACY_ELEMENT_GROUP, LEGACY_TRUTH_GROUP, PROVENANCE_GROUP, ROOT_GROUP, SONAR_GROUP,
                                       TRUTH_GROUP, node_path)
 from processing.base.dataset import DatasetError
 from processing.base.groups import build_group, complex_pair, conform_group, per_ping, tree_of
 
-__all__ = ["record_tree", "from_legacy", "read_mat", "check_record", "MAT_FIELDS", "CHANNEL",
+__all__ = ["record_tree", "from_legacy", "read_mat", "check_record", "open_record", "RECORD_KINDS", "MAT_FIELDS", "CHANNEL",
            "SOUND_SPEED_M_S", "PING_TIME_SPAN_S", "MAT_MAX_BYTES"]
 
 #: sound speeds a record may claim (m/s): water from fresh to salt, 0 to 40 °C, at any depth a
@@ -205,7 +205,14 @@ def record_tree(samples, *, rate_hz: float, center_frequency_hz: float, bandwidt
     root = {"keywords": "", "title": title, "data_kind": "recorded",
             "date_created": _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat(),
             "source": str(source)}
+    created = root["date_created"]
+    from processing.base.lazy import distribution_version
+    # what echopype's Provenance holds: its combine_echodata reads it
+    provenance = {"conversion_software_name": "abacus",
+                  "conversion_software_version": distribution_version("abacus"), "conversion_time": created}
     tree = tree_of({ROOT_GROUP: build_group(ROOT_GROUP, {}, attrs=root),
+                    PROVENANCE_GROUP: build_group(PROVENANCE_GROUP, {"source_filenames": [str(source)],
+                                                                     "filenames": [0]}, attrs=provenance),
                     ENVIRONMENT_GROUP: build_group(ENVIRONMENT_GROUP, env),
                     SONAR_GROUP: build_group(SONAR_GROUP, sonar, attrs={
                         "sonar_manufacturer": "", "sonar_model": "", "sonar_serial_number": "",
@@ -619,3 +626,63 @@ def read_mat(path, *, max_memory_gb: float | None = None) -> xr.DataTree:
         absorption_db_per_m=_scalar(m, "alpha", where, required=False),
         ping_time_s=opt.get("ping_time"), mode=mode, tx_beamwidth_deg=opt.get("tx_beamwidth_deg"),
         title=f"converted from {path.name}", source=where)
+
+
+#: what :func:`open_record` reads (for messages)
+RECORD_KINDS = ("abacus SONAR-netCDF4 1.0 (.nc/.zarr)", "the previous abacus layout",
+                "a MATLAB v5/v7 .mat recording", "a SONAR-netCDF4 2.0 file", "a Simrad EK60/EK80 file converted by echopype")
+
+
+def open_record(path, *, max_memory_gb: float | None = None, beam_group: str = "Beam_group1") -> xr.DataTree:
+    """Any recording abacus reads, as a checked tree.
+
+    * ``.mat``: :func:`read_mat`;
+    * a SONAR-netCDF4 2.0 file (:func:`processing.base.sonar_netcdf2_read.read_sonar_netcdf2`),
+      its beam group ``beam_group`` (an EK80 writes one per channel);
+    * the previous abacus layout: :func:`from_legacy`;
+    * a Simrad EK60/EK80 file echopype converted (``echopype.open_raw(...).to_netcdf``): checked
+      by :func:`processing.base.echosounder.check_echosounder` (every missing variable named in
+      one message), its NaN documented (:func:`processing.base.echosounder.annotate_missing`),
+      its values unchanged; ``abacus sv`` calibrates it;
+    * a SONAR-netCDF4 file of per-element samples (abacus' own, or one written by hand): read
+      by :func:`processing.base.dataset.read_record`, every missing variable named at once.
+
+    Parameters
+    ----------
+    path : str or Path
+    max_memory_gb : float, optional
+    beam_group : str
+        The beam group of a 2.0 file to read.
+
+    Returns
+    -------
+    xarray.DataTree
+
+    Raises
+    ------
+    DatasetError
+        Unreadable, or not one of :data:`RECORD_KINDS`, or incomplete (all that is missing named).
+    """
+    from processing.base.dataset import has_group, open_tree, read_record
+    from processing.base.echosounder import annotate_missing, check_echosounder, echosounder_model
+    from processing.base.sonar_netcdf2 import is_sonar_netcdf2
+    path = Path(path)
+    where = str(path)
+    if path.suffix.lower() == ".mat":
+        return read_mat(path, max_memory_gb=max_memory_gb)
+    if is_sonar_netcdf2(path):
+        from processing.base.sonar_netcdf2_read import read_sonar_netcdf2
+        tree = read_sonar_netcdf2(path, max_memory_gb=max_memory_gb, beam_group=beam_group)
+        check_record(tree, source=where)
+        return tree
+    tree = open_tree(path, max_memory_gb=max_memory_gb, work_factor=2.0)
+    if has_group(tree, LEGACY_ELEMENT_GROUP) and not has_group(tree, ELEMENT_GROUP):
+        return from_legacy(tree, source=where)
+    if echosounder_model(tree) is not None:
+        check_echosounder(tree, source=where)
+        return annotate_missing(tree)
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        read_record(tree, source=where)
+    return tree

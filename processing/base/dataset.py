@@ -38,7 +38,8 @@ from processing.base.contract import (CONVENTIONS, ELEMENT_GROUP, ENVIRONMENT_GR
 
 __all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "ping_indices", "TRUTH_GROUP",
            "write_tree", "write_dataset", "check_finite", "NAN_MEANS", "open_tree", "tree_pings", "source_of", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
-           "read_record", "beam_samples", "LEGACY_ELEMENT_GROUP", "as_tree", "group_of", "has_group"]
+           "read_record", "beam_samples", "LEGACY_ELEMENT_GROUP", "as_tree", "group_of", "has_group",
+           "missing_variables", "echosounder_model", "SIMRAD_MODELS", "sonar_convention_version"]
 
 FORMATS = ("netcdf", "zarr")
 
@@ -91,6 +92,29 @@ def _small_chunk_cache(size_bytes: int = 4 << 20):
         netCDF4.set_chunk_cache(*previous)
 
 
+def _write_netcdf(tree: xr.DataTree, path: Path, encoding: dict) -> None:
+    """Write the groups of ``tree`` to one NetCDF4 file, as ``DataTree.to_netcdf`` does.
+
+    The same encoding path (xarray's CF encoder and its ``NetCDF4DataStore``), so the bytes on
+    disk are those of ``to_netcdf``; what differs is the lock. ``to_netcdf`` asks dask, when it
+    is installed, which scheduler would run the write, and that question imports ``distributed``
+    with tornado and asyncio (≈ 300 modules, 0.3–0.6 s of a 3 s ``abacus run``, again at exit).
+    Every array here is in memory and written now, in this thread, so the lock that matters is
+    the one that keeps HDF5 to one thread at a time: xarray's own, the one its readers take."""
+    from xarray.backends import NetCDF4DataStore
+    from xarray.backends.locks import HDF5_LOCK, NETCDFC_LOCK, combine_locks
+
+    root = NetCDF4DataStore.open(str(path), mode="w", format="NETCDF4",
+                                 lock=combine_locks([NETCDFC_LOCK, HDF5_LOCK]))
+    try:
+        for node in tree.subtree:
+            at_root = node is tree
+            store = root if at_root else root.get_child_store(node.path)
+            node.to_dataset(inherit=at_root).dump_to_store(store, encoding=encoding.get(node.path))
+    finally:
+        root.close()
+
+
 def write_tree(tree: xr.DataTree, path: str | Path, *, fmt: str | None = None) -> Path:
     """Write a dataset atomically as NetCDF4 (default) or Zarr.
 
@@ -118,7 +142,7 @@ def write_tree(tree: xr.DataTree, path: str | Path, *, fmt: str | None = None) -
     with staged(path) as tmp:
         if fmt == "netcdf":
             with _small_chunk_cache():
-                tree.to_netcdf(tmp, engine="netcdf4", encoding=_encoding(tree) or None)
+                _write_netcdf(tree, tmp, _encoding(tree))
         else:
             tree.to_zarr(tmp, mode="w", consolidated=False, zarr_format=2)
     return path
@@ -209,6 +233,9 @@ def open_tree(path: str | Path, *, max_memory_gb: float | None = None,
         raise DatasetError(f"{path}: not a regular file (a device or a pipe); expected NetCDF4 or Zarr")
     if path.is_dir():
         require("zarr", f"reading Zarr ({path.name})")
+    elif sonar_convention_version(path).startswith("2"):
+        raise DatasetError(f"{path}: a SONAR-netCDF4 2.0 file; read it with processing.open_record(path), "
+                           f"or convert it to the 1.0 dataset processing reads: abacus convert {path.name} OUT.nc")
     try:
         if path.is_dir():
             tree = xr.open_datatree(path, engine="zarr", consolidated=False)
@@ -233,6 +260,17 @@ def open_tree(path: str | Path, *, max_memory_gb: float | None = None,
                            f"{_first_line(exc)})") from None
     finally:
         tree.close()
+
+
+def sonar_convention_version(path: Path) -> str:
+    """The root attribute ``sonar_convention_version`` of a netCDF4 file ("" when it has none
+    or is not netCDF4): how a SONAR-netCDF4 2.0 file is told from a 1.0 dataset."""
+    import netCDF4
+    try:
+        with netCDF4.Dataset(path) as nc:
+            return str(getattr(nc, "sonar_convention_version", "")).strip()
+    except Exception:        # not netCDF4: xarray's reader says what it is
+        return ""
 
 
 def _first_line(exc) -> str:
@@ -495,8 +533,45 @@ def beam_samples(ds: xr.Dataset, *, where: str = "") -> PairedSamples:
         raise DatasetError(f"{where}/backscatter_r/_i: {exc}") from None
 
 
+#: sonar models (the root's ``keywords``, echopype's ``sonar_model``) -> the family read here
+SIMRAD_MODELS = {"EK60": "EK60", "ES70": "EK60", "EK80": "EK80", "ES80": "EK80", "EA640": "EK80"}
+
+
+def echosounder_model(tree: xr.DataTree) -> str | None:
+    """"EK60" or "EK80" for a file echopype converted from a Simrad echosounder (its root
+    ``keywords`` or /Sonar ``sonar_model`` names one of :data:`SIMRAD_MODELS`), else None.
+
+    abacus' own files (one channel whose beams are elements, ``element_subarray``) are never
+    taken for one, whatever their keywords say.
+    """
+    bg = group_of(tree, ELEMENT_GROUP)
+    if bg is not None and "element_subarray" in bg.variables:
+        return None
+    sonar = group_of(tree, SONAR_GROUP)
+    for name in (tree.attrs.get("keywords"), sonar.attrs.get("sonar_model") if sonar is not None else None):
+        family = SIMRAD_MODELS.get(str(name or "").strip().upper())
+        if family:
+            return family
+    return None
+
+
+def missing_variables(tree: xr.DataTree) -> list:
+    """The variables processing cannot do without (the contract's mandatory ones) that a
+    dataset lacks, as ``/group/variable`` paths, in the table's order (empty: none missing)."""
+    from processing.base.contract import GROUPS
+    out = []
+    for path, spec in GROUPS.items():
+        names = [v.name for v in spec.variables if v.mandatory]
+        if not names:
+            continue
+        ds = group_of(tree, path.strip("/"))
+        out += [f"{path}/{n}" for n in names if ds is None or n not in ds.variables]
+    return out
+
+
 def read_record(tree: xr.DataTree, *, source: str = "") -> SonarRecord:
-    """The processing view of a dataset; every missing or malformed piece is named.
+    """The processing view of a dataset; every missing or malformed piece is named (every
+    missing variable in one message).
 
     Raises
     ------
@@ -504,14 +579,19 @@ def read_record(tree: xr.DataTree, *, source: str = "") -> SonarRecord:
     """
     where = source or "dataset"
     eg = ELEMENT_GROUP
-    try:
-        node = tree[eg]
-    except KeyError:
-        if has_group(tree, LEGACY_ELEMENT_GROUP):
-            raise DatasetError(f"{where}: the previous abacus layout (/{LEGACY_ELEMENT_GROUP}); "
-                               f"bring it to SONAR-netCDF4 with `abacus convert IN OUT`") from None
-        raise DatasetError(f"{where}: missing group /{eg} (per-element samples)") from None
-    ds = node.ds
+    if not has_group(tree, eg) and has_group(tree, LEGACY_ELEMENT_GROUP):
+        raise DatasetError(f"{where}: the previous abacus layout (/{LEGACY_ELEMENT_GROUP}); "
+                           f"bring it to SONAR-netCDF4 with `abacus convert IN OUT`")
+    model = echosounder_model(tree)
+    if model is not None:
+        raise DatasetError(f"{where}: an {model} file converted by echopype: one channel per transducer "
+                           f"(power, angles or sector samples), not the per-element samples of an array that "
+                           f"imaging, detection and counting need; `abacus sv` calibrates it")
+    missing = missing_variables(tree)
+    if missing:
+        raise DatasetError(f"{where}: lacks {len(missing)} variable{'s' if len(missing) > 1 else ''} processing "
+                           f"needs: {', '.join(missing)} (docs/dataset.md)")
+    ds = tree[eg].ds
     samples = beam_samples(ds, where=f"{where}: /{eg}")
     if not samples.all_finite():
         raise DatasetError(f"{where}: /{eg}/backscatter_r/_i contain NaN or inf samples")

@@ -61,11 +61,25 @@ def refine(y_minus, y0, y_plus):
     return off, height
 
 
+def _log_gain(y_minus, y0, y_plus):
+    """ln of the height of the parabola through the three samples' logarithms over ln y0 (≥ 0;
+    0 where a sample is not positive)."""
+    ok = (y_minus > 0) & (y0 > 0) & (y_plus > 0)
+    la, l0, lc = (np.log(np.where(ok, v, 1.0)) for v in (y_minus, y0, y_plus))
+    _, h = refine(la, l0, lc)
+    return np.where(ok, h - l0, 0.0)
+
+
 def refine_peaks(mag, rows, cols, range_m, beam_angle_rad):
     """Sub-cell range (m), azimuth (rad) and peak magnitude of each peak.
 
-    Parabolas through the log-free magnitude; at an image edge the missing neighbour is replaced
-    by the peak itself (no shift towards the outside).
+    Positions: parabolas through the magnitude. Magnitude: the peak of the image's main lobe,
+    taken as separable in range and azimuth and Gaussian near its top (a parabola through the
+    logarithms, in each axis; the gains multiply). A parabola through the magnitudes
+    themselves, or the larger of the two axes' heights, reads a target between beams up to
+    0.06 dB low where the beams are sampled at 2.6 per 3 dB width (16 elements, 32 FFT beams;
+    docs/single_targets.md); the logarithmic fit leaves ≤ 0.01 dB. At an image edge the missing
+    neighbour is replaced by the peak itself (no shift towards the outside).
 
     Returns
     -------
@@ -81,11 +95,11 @@ def refine_peaks(mag, rows, cols, range_m, beam_angle_rad):
     dn = np.where(rows < nr - 1, m[np.minimum(rows + 1, nr - 1), cols], y0)
     lf = np.where(cols > 0, m[rows, np.maximum(cols - 1, 0)], y0)
     rt = np.where(cols < nb - 1, m[rows, np.minimum(cols + 1, nb - 1)], y0)
-    dr, hr = refine(up, y0, dn)
-    dc, hc = refine(lf, y0, rt)
+    dr, _ = refine(up, y0, dn)
+    dc, _ = refine(lf, y0, rt)
     step_r = (r[-1] - r[0]) / (nr - 1) if nr > 1 else 0.0
     # local beam spacing in sin θ (FFT beams are uniform in it; others need not be)
     du = np.where(dc >= 0, u[np.minimum(cols + 1, nb - 1)] - u[cols], u[cols] - u[np.maximum(cols - 1, 0)])
     az = np.arcsin(np.clip(u[cols] + dc * du, -1.0, 1.0))
-    amp = np.maximum(hr, hc)
+    amp = y0 * np.exp(_log_gain(up, y0, dn) + _log_gain(lf, y0, rt))
     return r[rows] + dr * step_r, az, amp

@@ -1,31 +1,35 @@
-"""Fish tracks across pings: filters, association and track management over 3-D detections.
+"""Fish tracks across pings: a tracker built of three replaceable parts, over 3-D detections.
 
 The thesis counts per ping and names tracking (an αβ tracker) as its next step (§7). Here a
 detection is a point located in the world frame (range, azimuth and interferometric elevation
 through its ping's pose, so the platform's motion is removed) with a covariance from its own
-uncertainty (:func:`measurement_covariance`). Tracks are built ping by ping:
+uncertainty (:func:`measurement_covariance`). The tracker is made of parts, in the shape of
+Stone Soup (predictor/updater, hypothesiser/data associator, initiator/deleter) without its
+framework, each chosen by a setting of ``track`` and tested on its own:
 
-1. every live track predicts its state to the ping's time (constant velocity);
-2. detections are gated by the Mahalanobis distance d² = νᵀ S⁻¹ ν of the innovation ν against the
-   chi-square quantile of ``gate_probability`` (3 degrees of freedom) and assigned one-to-one by
-   the Hungarian algorithm on d² + ln|S| (the negative log-likelihood, so a tight track does not
-   lose its detection to a loose one) — :func:`scipy.optimize.linear_sum_assignment`;
-3. assigned tracks update (Kalman, or fixed αβ gains); unassigned detections start tentative
-   tracks (position from the detection, velocity 0 ± ``initial_speed_sd_m_s``);
-4. a tentative track is confirmed after ``confirm_hits`` hits in its first ``confirm_window``
-   pings, and dropped when that can no longer happen; a track ends after ``max_misses``
-   consecutive pings without a detection.
+* **motion** (:mod:`processing.tracking.motion`, ``method``): constant-velocity Kalman filter
+  with RTS smoothing, or the thesis' αβ filter;
+* **gate and assign** (:mod:`processing.tracking.association`, ``association``): a chi-square
+  gate of ``gate_probability`` on the innovation's Mahalanobis distance, then global nearest
+  neighbour (Hungarian algorithm on d² + ln|S|) or the parametric JPDA, which shares a
+  detection that falls in several gates;
+* **track management** (:mod:`processing.tracking.management`): M-of-N confirmation
+  (``confirm_hits`` of ``confirm_window``), deletion after ``max_misses`` consecutive misses,
+  births from the detections no track takes.
 
-Confirmed Kalman tracks are smoothed by the Rauch–Tung–Striebel smoother (the αβ tracker's
-positions are its filtered ones). Pure functions over arrays and a small :class:`Track` record;
-no state outside a call, so the result depends only on the detections and the settings.
+Ping by ping: every live track predicts its state to the ping's time; detections are gated and
+assigned; assigned tracks update, the others coast; unassigned detections start tentative tracks;
+management confirms, drops and ends tracks. Confirmed tracks are smoothed (RTS for the Kalman
+filter; the αβ tracker's positions are its filtered ones). Pure functions over arrays and a
+small :class:`Track` record; no state outside a call, so the result depends only on the
+detections and the settings.
 
 Why not a library: Stone Soup (the most complete, maintained tracking framework) represents every
 state, detection and hypothesis as a Python object with a dozen dependencies, and filterpy has
 not been released since 2018; what is needed here is a constant-velocity predict/update (ten
 lines of linear algebra, tested against the closed-form steady state) and an optimal assignment,
 which scipy provides. The scoring, where re-deriving is error-prone, uses py-motmetrics
-(processing/tracking/scores.py).
+(processing/tracking/scores.py) and is checked against trackeval (processing/tracking/hota.py).
 """
 from __future__ import annotations
 
@@ -33,19 +37,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Track", "track_detections", "measurement_covariance", "cv_matrices"]
+from processing.tracking.association import (gate_threshold, gated_costs, global_nearest_neighbour,
+                                             jpda_weights)
+from processing.tracking.management import MOfN
+from processing.tracking.motion import cv_matrices, motion_model
 
-# chi-square quantiles with 3 degrees of freedom (scipy.stats.chi2.ppf(p, 3)), tabulated to keep
-# scipy.stats out of the import path; other probabilities are computed on demand
-_CHI2_3 = {0.9: 6.251388631170325, 0.95: 7.814727903251178, 0.99: 11.344866730144373,
-           0.999: 16.26623619623813}
-
-
-def _gate(p: float) -> float:
-    if p in _CHI2_3:
-        return _CHI2_3[p]
-    from scipy.stats import chi2
-    return float(chi2.ppf(p, 3))
+__all__ = ["Track", "track_detections", "measurement_covariance", "resolution_covariance", "cv_matrices"]
 
 
 @dataclass
@@ -73,6 +70,8 @@ class Track:
     smoothed : list of ndarray
         Smoothed states (6,), one per ping, once the track is finished (RTS for the Kalman
         filter, the filtered states for αβ).
+    R : list of ndarray or None
+        Measurement covariance (3, 3) its update used at each ping, None for a miss.
     """
 
     track_id: int
@@ -87,18 +86,7 @@ class Track:
     hits: int = 0
     misses: int = 0
     smoothed: list = field(default_factory=list)
-
-
-def cv_matrices(dt_s: float, accel_sd_m_s2: float):
-    """Constant-velocity transition F (6, 6) and process noise Q (6, 6) for a white-noise
-    acceleration of spectral density q = accel_sd² (m²/s³ per axis) over dt (s):
-    Q = q [[dt³/3, dt²/2], [dt²/2, dt]] ⊗ I₃ (Bar-Shalom, Li & Kirubarajan 2001, §6.2.2)."""
-    dt = float(dt_s)
-    eye = np.eye(3)
-    F = np.block([[eye, dt * eye], [np.zeros((3, 3)), eye]])
-    q = accel_sd_m_s2 ** 2
-    Q = q * np.block([[dt**3 / 3 * eye, dt**2 / 2 * eye], [dt**2 / 2 * eye, dt * eye]])
-    return F, Q
+    R: list = field(default_factory=list)
 
 
 def measurement_covariance(range_m, azimuth_rad, elevation_rad, snr_db, *, range_resolution_m: float,
@@ -145,6 +133,46 @@ def measurement_covariance(range_m, azimuth_rad, elevation_rad, snr_db, *, range
     s_r = range_resolution_m / np.sqrt(2 * sinr)
     s_t = azimuth_resolution_rad / np.sqrt(2 * sinr)
     s_p = wavelength_m / (2 * np.pi * baseline_m * np.maximum(np.cos(ph), 1e-3)) / np.sqrt(sinr)
+    return _to_world(r, th, ph, s_r, s_t, s_p, rotation)
+
+
+def resolution_covariance(range_m, azimuth_rad, elevation_rad, *, range_resolution_m: float,
+                          azimuth_resolution_rad: float, elevation_resolution_rad: float, rotation=None):
+    """World-frame covariance of a position anywhere within a resolution cell (σ = δ/√12 per axis).
+
+    Two fish closer than a resolution cell (range resolution × azimuth resolution × the
+    transmitter's elevation beamwidth, which mixes every echo of the fan's thickness) give one
+    echo, placed anywhere between them, or two that swap; an echo within a cell of a track's
+    prediction is therefore no evidence of a new fish. The tracker's resolution gate
+    (``track.resolution_cells``) uses this covariance.
+
+    Parameters
+    ----------
+    range_m, azimuth_rad, elevation_rad : array_like, shape (n,)
+    range_resolution_m, azimuth_resolution_rad, elevation_resolution_rad : float
+        3 dB widths of the cell.
+    rotation : ndarray, shape (3, 3) or (n, 3, 3), optional
+        Sonar axes in world coordinates (columns); None: identity.
+
+    Returns
+    -------
+    ndarray, shape (n, 3, 3)
+        Covariance (m²).
+    """
+    r = np.asarray(range_m, float)
+    th = np.asarray(azimuth_rad, float)
+    ph = np.asarray(elevation_rad, float)
+    one = np.ones_like(r)
+    # an unresolved echo lies anywhere within its cell: uniform, σ = δ/√12
+    u = one / np.sqrt(12.0)
+    return _to_world(r, th, ph, range_resolution_m * u, azimuth_resolution_rad * u,
+                     elevation_resolution_rad * u, rotation)
+
+
+def _to_world(r, th, ph, s_r, s_t, s_p, rotation):
+    """Spherical standard deviations (range m, azimuth rad, elevation rad) of points at
+    (r, θ, φ) as world-frame covariances (n, 3, 3): the Jacobian of x = r cos φ sin θ,
+    y = r sin φ, z = r cos φ cos θ, then the ping's rotation."""
     ct, st, cp, sp = np.cos(th), np.sin(th), np.cos(ph), np.sin(ph)
     J = np.empty(r.shape + (3, 3))
     J[..., 0, :] = np.stack([cp * st, r * cp * ct, -r * sp * st], -1)
@@ -159,19 +187,12 @@ def measurement_covariance(range_m, azimuth_rad, elevation_rad, snr_db, *, range
     return C
 
 
-def _assign(cost):
-    from scipy.optimize import linear_sum_assignment
-    big = 1e12
-    c = np.where(np.isfinite(cost), cost, big)
-    rows, cols = linear_sum_assignment(c)
-    keep = c[rows, cols] < big
-    return rows[keep], cols[keep]
-
-
 def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: str = "kalman",
-                     gate_probability: float = 0.99, accel_sd_m_s2: float = 0.5,
-                     initial_speed_sd_m_s: float = 1.0, alpha: float = 0.5, beta: float = 0.2,
-                     confirm_hits: int = 3, confirm_window: int = 4, max_misses: int = 2):
+                     association: str = "gnn", gate_probability: float = 0.99,
+                     accel_sd_m_s2: float = 0.5, initial_speed_sd_m_s: float = 1.0, alpha: float = 0.5,
+                     beta: float = 0.2, confirm_hits: int = 3, confirm_window: int = 4,
+                     max_misses: int = 2, resolution_m2=None, resolution_cells: float = 1.0,
+                     motion=None, management=None):
     """Tracks of detections across pings.
 
     Parameters
@@ -186,12 +207,31 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
     covariance_m2 : array_like, shape (n, 3, 3)
         Their covariances (:func:`measurement_covariance`).
     method : {"kalman", "alpha_beta"}
-        Constant-velocity Kalman filter (with RTS smoothing), or the thesis' αβ filter (fixed
-        gains ``alpha``, ``beta``; its gate uses the measurement covariance plus the spread a
-        speed of ``initial_speed_sd_m_s`` gives over the interval).
+        The motion part (:func:`processing.tracking.motion.motion_model`), unless ``motion``
+        gives one.
+    association : {"gnn", "jpda"}
+        The gate-and-assign part (:mod:`processing.tracking.association`).
     gate_probability, accel_sd_m_s2, initial_speed_sd_m_s, alpha, beta, confirm_hits,
     confirm_window, max_misses
         See the module docstring.
+    resolution_m2 : array_like, shape (n, 3, 3), optional
+        Each detection's resolution cell as a covariance (:func:`resolution_covariance`).
+        With it, the resolution gate: a track left without a detection by the assignment takes
+        an unassigned detection within ``resolution_cells`` cells of its prediction (Mahalanobis
+        distance against P + R + c² C_cell inside the same chi-square gate; its update then
+        uses R + c² C_cell, as the echo may be merged with a neighbour's), and a detection no
+        track took but lying within that gate of a confirmed track starts no new track — the sonar
+        cannot tell a new fish from the tracked one there (an echo merged with or split from a
+        neighbour's). The price: a fish that stays within a cell of a tracked one starts its
+        own track only once they part.
+    resolution_cells : float
+        c above; 0 turns the resolution gate off.
+    motion : object, optional
+        A motion part (``predict``, ``innovation_covariance``, ``update``, ``update_mixture``,
+        ``smooth``; :mod:`processing.tracking.motion`) used instead of ``method``.
+    management : MOfN, optional
+        The track-management part used instead of ``confirm_hits``, ``confirm_window``,
+        ``max_misses`` and ``initial_speed_sd_m_s``.
 
     Returns
     -------
@@ -199,16 +239,26 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
         Confirmed tracks, ordered by birth (then by the detection that started them); each with
         ``smoothed`` states (list of (6,) arrays), one per ping of the track.
     """
-    if method not in ("kalman", "alpha_beta"):
-        raise ValueError(f"tracking method must be 'kalman' or 'alpha_beta', got {method!r}")
+    if association not in ("gnn", "jpda"):
+        raise ValueError(f"tracking association must be 'gnn' or 'jpda', got {association!r}")
+    if motion is None:
+        motion = motion_model(method, accel_sd_m_s2=accel_sd_m_s2, alpha=alpha, beta=beta,
+                              speed_sd_m_s=initial_speed_sd_m_s)
+    if management is None:
+        management = MOfN(confirm_hits, confirm_window, max_misses, initial_speed_sd_m_s)
     pings = np.asarray(ping_index, int).ravel()
     pos = np.asarray(position_m, float).reshape(-1, 3)
     cov = np.asarray(covariance_m2, float).reshape(-1, 3, 3)
     if not (len(pings) == len(pos) == len(cov)):
         raise ValueError("ping_index, position_m and covariance_m2 must have one row per detection")
     ok = np.all(np.isfinite(pos), axis=1) & np.all(np.isfinite(cov), axis=(1, 2))
-    gate = _gate(float(gate_probability))
-    H = np.hstack([np.eye(3), np.zeros((3, 3))])
+    cell = None
+    if resolution_m2 is not None and resolution_cells > 0:
+        cell = float(resolution_cells) ** 2 * np.asarray(resolution_m2, float).reshape(-1, 3, 3)
+        if len(cell) != len(pos):
+            raise ValueError("resolution_m2 must have one row per detection")
+        ok &= np.all(np.isfinite(cell), axis=(1, 2))
+    gate = gate_threshold(float(gate_probability))
     live: list[Track] = []
     done: list[Track] = []
     next_id = 0
@@ -217,86 +267,94 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
     for p in order:
         t = float(time_s[p])
         rows = np.flatnonzero((pings == p) & ok)
-        # 1. predict every live track to this ping: (x, P, dt) per track
+        # 1. predict every live track to this ping
         pred = []
         for tr in live:
             dt = t - tr.times[-1]
-            F, Q = cv_matrices(dt, accel_sd_m_s2)
-            pred.append((F @ tr.x[-1], F @ tr.P[-1] @ F.T + Q, dt))
+            xp, Pp = motion.predict(tr.x[-1], tr.P[-1], dt)
+            pred.append((xp, Pp, dt))
         # 2. gate and assign
-        cost = np.full((len(live), rows.size), np.inf)
-        for i, (xp, Pp, dt) in enumerate(pred):
-            if rows.size == 0:
-                break
-            if method == "kalman":
-                S = Pp[:3, :3][None] + cov[rows]
-            else:
-                S = 2 * cov[rows] + (initial_speed_sd_m_s * dt) ** 2 * np.eye(3)[None]
-            nu = pos[rows] - xp[:3]
-            Sinv = np.linalg.inv(S)
-            d2 = np.einsum("ni,nij,nj->n", nu, Sinv, nu)
-            _, logdet = np.linalg.slogdet(S)
-            cost[i] = np.where(d2 <= gate, d2 + logdet, np.inf)
-        a_tr, a_det = _assign(cost) if cost.size else (np.array([], int), np.array([], int))
+        if live and rows.size:
+            S = np.stack([motion.innovation_covariance(Pp, cov[rows], dt) for xp, Pp, dt in pred])
+            S = np.broadcast_to(S, (len(live), rows.size, 3, 3))
+            _, cost = gated_costs(np.array([xp[:3] for xp, _, _ in pred]), S, pos[rows], gate)
+        else:
+            cost = np.full((len(live), rows.size), np.inf)
+        a_tr, a_det = global_nearest_neighbour(cost)
         assigned = dict(zip(a_tr.tolist(), a_det.tolist()))
         used = set(a_det.tolist())
+        blocked = set()
+        loose = {}
+        if cell is not None and live and rows.size:
+            # the resolution gate: a second, looser pass over what the first left, and no
+            # births within a cell of a live track
+            S2 = np.stack([motion.innovation_covariance(Pp, cov[rows] + cell[rows], dt) for _, Pp, dt in pred])
+            S2 = np.broadcast_to(S2, (len(live), rows.size, 3, 3))
+            _, cost2 = gated_costs(np.array([xp[:3] for xp, _, _ in pred]), S2, pos[rows], gate)
+            free_t = np.array([i for i in range(len(live)) if i not in assigned], int)
+            free_d = np.array([k for k in range(rows.size) if k not in used], int)
+            if free_t.size and free_d.size:
+                b_tr, b_det = global_nearest_neighbour(cost2[np.ix_(free_t, free_d)])
+                for i, k in zip(free_t[b_tr].tolist(), free_d[b_det].tolist()):
+                    assigned[i] = k
+                    loose[i] = k
+                    used.add(k)
+            firm = np.array([tr.confirmed for tr in live], bool)
+            blocked = set(np.flatnonzero(np.isfinite(cost2[firm]).any(axis=0)).tolist()) - used
+        weights = jpda_weights(cost) if association == "jpda" and cost.size else None
         # 3. update
         for i, (tr, (xp, Pp, dt)) in enumerate(zip(live, pred)):
             tr.pings.append(int(p))
             tr.times.append(t)
             tr.x_pred.append(xp)
             tr.P_pred.append(Pp)
+            shared = weights is not None and np.count_nonzero(weights[i]) > 1
+            if shared:
+                k = np.flatnonzero(weights[i] > 0)
+                x, P = motion.update_mixture(xp, Pp, pos[rows[k]], cov[rows[k]], weights[i, k], dt)
             if i in assigned:
                 j = rows[assigned[i]]
-                nu = pos[j] - xp[:3]
-                if method == "kalman":
-                    K = Pp @ H.T @ np.linalg.inv(Pp[:3, :3] + cov[j])
-                    x = xp + K @ nu
-                    IKH = np.eye(6) - K @ H
-                    P = IKH @ Pp @ IKH.T + K @ cov[j] @ K.T     # Joseph form: stays symmetric
-                else:
-                    x = xp.copy()
-                    x[:3] += alpha * nu
-                    x[3:] += beta * nu / max(dt, 1e-9)
-                    P = Pp
+                if i in loose:
+                    x, P = motion.update(xp, Pp, pos[j], cov[j] + cell[j], dt)
+                elif not shared:
+                    x, P = motion.update(xp, Pp, pos[j], cov[j], dt)
                 tr.x.append(x)
                 tr.P.append(P)
+                tr.R.append(cov[j] + cell[j] if i in loose else cov[j])
                 tr.detection.append(int(j))
                 tr.hits += 1
                 tr.misses = 0
             else:
-                tr.x.append(xp)
-                tr.P.append(Pp)
+                tr.x.append(x if shared else xp)
+                tr.P.append(P if shared else Pp)
                 tr.detection.append(-1)
+                tr.R.append(None)
                 tr.misses += 1
-            if not tr.confirmed and tr.hits >= confirm_hits and len(tr.pings) <= confirm_window:
+            if not tr.confirmed and management.confirmed(tr.hits, len(tr.pings)):
                 tr.confirmed = True
         # 4. births, deaths
         still = []
         for tr in live:
-            age = len(tr.pings)
-            hopeless = not tr.confirmed and (tr.hits + max(0, confirm_window - age) < confirm_hits)
-            if tr.misses > max_misses or hopeless:
+            hopeless = not tr.confirmed and management.hopeless(tr.hits, len(tr.pings))
+            if management.ended(tr.misses) or hopeless:
                 if tr.confirmed:
                     done.append(tr)
             else:
                 still.append(tr)
         live = still
         for k, j in enumerate(rows):
-            if k in used:
+            if k in used or k in blocked:
                 continue
-            P0 = np.zeros((6, 6))
-            P0[:3, :3] = cov[j]
-            P0[3:, 3:] = np.eye(3) * initial_speed_sd_m_s ** 2
-            x0 = np.concatenate([pos[j], np.zeros(3)])
-            tr = Track(next_id, [int(p)], [int(j)], [x0], [P0], [x0], [P0], [t], hits=1)
-            tr.confirmed = confirm_hits <= 1
+            x0, P0 = management.birth(pos[j], cov[j])
+            tr = Track(next_id, [int(p)], [int(j)], [x0], [P0], [x0], [P0], [t], hits=1, R=[cov[j]])
+            tr.confirmed = management.confirmed(1, 1)
             next_id += 1
             live.append(tr)
     done.extend(tr for tr in live if tr.confirmed)
     for tr in done:
         _trim(tr)
-        tr.smoothed = _rts(tr, accel_sd_m_s2) if method == "kalman" else [x.copy() for x in tr.x]
+    for tr in done:
+        tr.smoothed = motion.smooth(tr.x, tr.P, tr.x_pred, tr.P_pred, tr.times)
     done.sort(key=lambda tr: tr.track_id)
     for new_id, tr in enumerate(done):
         tr.track_id = new_id
@@ -306,20 +364,6 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
 def _trim(tr: Track):
     """Drop the trailing misses: a track ends at its last detection."""
     while tr.detection and tr.detection[-1] < 0:
-        for name in ("pings", "detection", "x", "P", "x_pred", "P_pred", "times"):
+        for name in ("pings", "detection", "x", "P", "x_pred", "P_pred", "times", "R"):
             getattr(tr, name).pop()
 
-
-def _rts(tr: Track, accel_sd_m_s2: float):
-    """Rauch–Tung–Striebel smoothing of a Kalman track (Särkkä 2013, §8.2)."""
-    n = len(tr.x)
-    xs = [None] * n
-    Ps = [None] * n
-    xs[-1], Ps[-1] = tr.x[-1].copy(), tr.P[-1].copy()
-    for k in range(n - 2, -1, -1):
-        F, _ = cv_matrices(tr.times[k + 1] - tr.times[k], accel_sd_m_s2)
-        Pp = tr.P_pred[k + 1]
-        G = tr.P[k] @ F.T @ np.linalg.pinv(Pp)
-        xs[k] = tr.x[k] + G @ (xs[k + 1] - tr.x_pred[k + 1])
-        Ps[k] = tr.P[k] + G @ (Ps[k + 1] - Pp) @ G.T
-    return xs

@@ -4,8 +4,10 @@ The standard CLEAR-MOT (MOTA, MOTP; Bernardin & Stiefelhagen 2008) and identity 
 al. 2016) metrics, ID switches and fragmentations come from py-motmetrics (Heindl,
 https://github.com/cheind/py-motmetrics), the reference implementation the MOTChallenge
 benchmarks validated theirs against — not re-derived here. The scene is scored where the thesis
-counts: true fish and track positions inside the counting volume, matched when within
-``max_distance_m`` (world frame).
+counts: the true fish inside the counting volume against the track positions, matched when within
+``max_distance_m`` (world frame); the volume's faces are treated as TrackEval treats MOTChallenge's
+distractors (:func:`_scored_frames`): a track point following a fish outside the volume is not a
+false positive, and one a centimetre outside following a fish inside is scored.
 
 Beside those, per track: the true fish it follows (the identity of the nearest true fish within
 ``max_distance_m`` at most of its detected pings), its speed error (track speed − that fish's mean
@@ -33,21 +35,56 @@ MOT_METRICS = ("mota", "motp", "idf1", "num_switches", "num_fragmentations", "mo
                "num_false_positives", "num_misses", "num_unique_objects")
 
 
+def _scored_frames(ds, truth, volume_inside_truth, max_distance_m, row_of_ping_index):
+    """Per ping, the true fish and track points that are scored: the evaluation region as
+    TrackEval preprocesses MOTChallenge data (``MotChallenge2DBox.get_preprocessed_seq_data``:
+    tracker detections matched to a distractor are removed, not counted false).
+
+    The true fish are those inside the counting volume. Every track point is first matched
+    one-to-one (Hungarian, within ``max_distance_m``) against every fish, inside or outside;
+    a point matched to a fish outside the volume is a correct track of a fish the volume does
+    not score (removed), an unmatched point outside the volume is not scored either, and the
+    rest are. So a fish at the volume's face whose track lies a centimetre beyond it is not a
+    miss, nor is the track of a fish just outside a false positive.
+
+    Returns
+    -------
+    list of (ndarray, ndarray)
+        Per ping (ascending), rows of ``truth`` and rows of the track points scored.
+    """
+    from scipy.optimize import linear_sum_assignment
+    tp = truth["target_ping_index"].astype(int)
+    t_xyz = np.stack([truth[f"target_world_{a}"] for a in "xyz"], -1)
+    pts_ping = ds["point_ping_index"].values.astype(int)
+    pts_in = ds["point_in_volume"].values.astype(bool)
+    pts_xyz = np.stack([ds[f"point_world_{a}"].values for a in "xyz"], -1)
+    frames = []
+    for p in sorted(row_of_ping_index):
+        allf = np.flatnonzero(tp == p)
+        h = np.flatnonzero(pts_ping == p)
+        keep = pts_in[h].copy()
+        if allf.size and h.size:
+            d = np.linalg.norm(t_xyz[allf][:, None, :] - pts_xyz[h][None, :, :], axis=-1)
+            c = np.where(d <= max_distance_m, d, 1e9)
+            r, k = linear_sum_assignment(c)
+            ok = c[r, k] < 1e9
+            r, k = r[ok], k[ok]
+            keep[k] = volume_inside_truth[allf[r]]
+        frames.append((allf[volume_inside_truth[allf]], h[keep]))
+    return frames
+
+
 def _mot(ds, truth, volume_inside_truth, max_distance_m, row_of_ping_index):
     import warnings
 
     from processing.base.extras import require
     mm = require("motmetrics", "scoring tracks against the truth (MOTA, IDF1)")
     acc = mm.MOTAccumulator(auto_id=False)
-    tp = truth["target_ping_index"].astype(int)
-    pts_ping = ds["point_ping_index"].values.astype(int)
-    pts_in = ds["point_in_volume"].values.astype(bool)
     pts_xyz = np.stack([ds[f"point_world_{a}"].values for a in "xyz"], -1)
     pts_track = ds["point_track"].values.astype(int)
     t_xyz = np.stack([truth[f"target_world_{a}"] for a in "xyz"], -1)
-    for frame, p in enumerate(sorted(row_of_ping_index)):
-        o = np.flatnonzero((tp == p) & volume_inside_truth)
-        h = np.flatnonzero((pts_ping == p) & pts_in)
+    for frame, (o, h) in enumerate(_scored_frames(ds, truth, volume_inside_truth, max_distance_m,
+                                                  row_of_ping_index)):
         d = np.linalg.norm(t_xyz[o][:, None, :] - pts_xyz[h][None, :, :], axis=-1) if o.size and h.size \
             else np.empty((o.size, h.size))
         d = np.where(d <= max_distance_m, d, np.nan)
@@ -63,17 +100,12 @@ def _hota(ds, truth, volume_inside_truth, max_distance_m, row_of_ping_index):
     """HOTA, DetA, AssA, LocA of the track points inside the counting volume against the true
     fish inside it, one frame per ping (:func:`processing.tracking.hota.hota`)."""
     from processing.tracking.hota import hota, localisation_similarity
-    tp = truth["target_ping_index"].astype(int)
     t_ids = truth["target_id"].astype(int)
     t_xyz = np.stack([truth[f"target_world_{a}"] for a in "xyz"], -1)
-    pts_ping = ds["point_ping_index"].values.astype(int)
-    pts_in = ds["point_in_volume"].values.astype(bool)
     pts_xyz = np.stack([ds[f"point_world_{a}"].values for a in "xyz"], -1)
     pts_track = ds["point_track"].values.astype(int)
     gt_ids, tr_ids, sims = [], [], []
-    for p in sorted(row_of_ping_index):
-        o = np.flatnonzero((tp == p) & volume_inside_truth)
-        h = np.flatnonzero((pts_ping == p) & pts_in)
+    for o, h in _scored_frames(ds, truth, volume_inside_truth, max_distance_m, row_of_ping_index):
         gt_ids.append(t_ids[o])
         tr_ids.append(pts_track[h])
         sims.append(localisation_similarity(t_xyz[o], pts_xyz[h], max_distance_m))

@@ -27,7 +27,7 @@ from processing.base.dataset import DatasetError, group_of, has_group
 from processing.pipeline import pose_of
 
 __all__ = ["TRACKS_GROUP", "track", "tracks_of", "track_summary", "format_tracks",
-           "write_tracks_csv", "strict_json"]
+           "write_tracks_csv", "strict_json", "truth_in_volume"]
 
 
 def _ping_times_s(tree):
@@ -45,6 +45,15 @@ def _baseline_m(tree):
     if not ((sub == "A").any() and (sub == "B").any()):
         return None
     return float(np.linalg.norm(xyz[sub == "B"].mean(0) - xyz[sub == "A"].mean(0)))
+
+
+def _elevation_beamwidth_rad(tree, volume):
+    """The transmitter's 3 dB elevation beamwidth (rad): the fan's thickness, within which
+    echoes are not resolved in elevation (twice the counting volume's half-width without it)."""
+    sonar = group_of(tree, SONAR_GROUP)
+    if sonar is not None and "beamwidth_transmit_minor" in sonar:
+        return float(np.radians(float(sonar["beamwidth_transmit_minor"])))
+    return 2.0 * float(volume.elevation_halfwidth_rad)
 
 
 class _Poses:
@@ -92,7 +101,7 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     """
     from processing.pipeline import RecordChain
     from processing.records import with_detections
-    from processing.tracking.filters import measurement_covariance, track_detections
+    from processing.tracking.filters import measurement_covariance, resolution_covariance, track_detections
     chain = RecordChain(tree, settings)
     tree, st = chain.tree, chain.settings
     ts_ = st.track
@@ -120,12 +129,28 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
                                  wavelength_m=c / f0, baseline_m=baseline,
                                  interference_db=ts_.interference_db,
                                  rotation=poses.rotation_of(rows))
+    cell = resolution_covariance(det["range_m"], det["azimuth_rad"], det["elevation_rad"],
+                                 range_resolution_m=detected.range_resolution_m,
+                                 azimuth_resolution_rad=detected.azimuth_resolution_rad,
+                                 elevation_resolution_rad=_elevation_beamwidth_rad(tree, detected.volume),
+                                 rotation=poses.rotation_of(rows))
     targets = chain.single_targets(detected)
     ts_u, ts_c = targets["ts_uncomp_db"], targets["ts_comp_db"]
     single = np.asarray(targets["single_target"], bool)
+    if ts_.resolution_cells > 0:
+        # a second peak in a stronger echo's cell is left to the resolution gate, which keeps it
+        # from starting a track without losing a fish side by side with a stronger one
+        from processing.backscatter.single_targets import single_targets
+        single = single_targets(det["ping"], det["range_m"], det["azimuth_rad"], det["amplitude"],
+                                range_resolution_m=detected.range_resolution_m,
+                                azimuth_resolution_rad=detected.azimuth_resolution_rad,
+                                sidelobe_db=ts_.sidelobe_db, same_cell=False)
+        single &= ~(ts_c < ts_.min_ts_db)
     times = _ping_times_s(tree)
     keep = np.flatnonzero(usable & single & np.all(np.isfinite(world), axis=1))
     tracks = track_detections(rows[keep], times, world[keep], cov[keep], method=ts_.method,
+                              association=ts_.association, resolution_m2=cell[keep],
+                              resolution_cells=ts_.resolution_cells,
                               gate_probability=ts_.gate_probability, accel_sd_m_s2=ts_.accel_sd_m_s2,
                               initial_speed_sd_m_s=ts_.initial_speed_sd_m_s, alpha=ts_.alpha,
                               beta=ts_.beta, confirm_hits=ts_.confirm_hits,
@@ -208,12 +233,44 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     from processing.tracking.scores import score_tracks
     truth = _truth_table(tree)
     if truth is not None:
+        # the fish inside the volume the tracks are counted in: the simulator's own flag bounds
+        # only the image's range (it knows no count.range_m or count half-widths)
+        truth["target_in_counting_volume"] = _inside(truth, volume, poses, ping_index_of_row)
         ds = score_tracks(ds, truth, volume=volume, to_sonar=poses.to_sonar,
                           row_of_ping_index={int(p): i for i, p in enumerate(ping_index_of_row)},
                           max_distance_m=ts_.score_distance_m)
     out = tree.copy()
     out[TRACKS_GROUP] = xr.DataTree(ds)
     return out
+
+
+def _inside(truth, volume, poses, ping_index_of_row):
+    """Per truth row: inside ``volume`` at its ping's pose (False for a ping not in the record)."""
+    row_of = {int(p): i for i, p in enumerate(ping_index_of_row)}
+    tp = np.asarray(truth["target_ping_index"], int)
+    known = np.array([int(p) in row_of for p in tp], bool)
+    rows = np.array([row_of.get(int(p), 0) for p in tp], int)
+    xyz = np.stack([truth[f"target_world_{a}"] for a in "xyz"], -1).reshape(-1, 3)
+    return np.asarray(volume.contains(poses.to_sonar(rows, xyz)), bool) & known
+
+
+def truth_in_volume(tree: xr.DataTree):
+    """Whether each true fish (row of the truth table) is inside the counting volume its tracks
+    were counted in (the volume of /Processing/Tracks' attributes, at each ping's pose).
+
+    Returns
+    -------
+    ndarray of bool, shape (n_truth_rows,), or None without truth
+    """
+    from processing.base.counting_volume import CountingVolume
+    from processing.base.dataset import ping_indices
+    truth = _truth_table(tree)
+    if truth is None:
+        return None
+    a = tracks_of(tree).attrs
+    volume = CountingVolume(tuple(float(x) for x in np.asarray(a["counting_range_m"]).ravel()),
+                            float(a["counting_azimuth_halfwidth_rad"]), float(a["counting_elevation_halfwidth_rad"]))
+    return _inside(truth, volume, _Poses(tree), np.asarray(ping_indices(tree[ELEMENT_GROUP].ds), int))
 
 
 def _truth_table(tree):

@@ -1,0 +1,234 @@
+"""Counts against density: per-ping counts and track counts of a swimming school against the truth
+at densities from sparse to beyond the thesis' (0.46 fish/m³, Tables 6.4 and 6.6), several seeds
+each — the "Counting against density" section of docs/validation.md.
+
+    python benchmarks/validation.py --only density
+    python benchmarks/density.py            # the same section alone, printed
+
+A school of swimbladder fish (6 × 1 cm) fills an ellipsoid 2.4 × 4 × 4 m around the fan of a
+down-looking sonar, 17–21 m deep, at a number density ρ, and swims across the fan at 0.15 m/s
+(loosely polarised, turning), 24 pings 0.25 s apart, physical levels and sea noise. The counting
+volume is the transmit beam between 17.5 and 20.5 m, inside the school, so its true density is ρ.
+Per ping: the count after interferometry against the true number in the volume; per run: the
+tracks through the volume against the fish that passed through it (processing.track, default
+settings); bias = Σ(counted − true) / Σ true and nMAE = Σ|counted − true| / Σ true (Kay et al.
+2022), over pings (per-ping counts) or runs (track counts) of all seeds; HOTA and IDF1 as mean ±
+standard deviation over the seeds.
+"""
+from __future__ import annotations
+
+import time
+import warnings
+
+import numpy as np
+
+try:
+    from _report import ROOT, machine, table
+except ImportError:        # run from the repository root
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).parent))
+    from _report import ROOT, machine, table
+
+THESIS_DENSITY = 0.46          # fish/m³, thesis Tables 6.4 and 6.6
+DENSITIES = (0.1, 0.25, 0.46, 1.0, 2.0, 4.0, 8.0)
+SEEDS = (301, 302, 303, 304, 305)
+PINGS = 24
+NMAE_LIMIT = 0.10
+
+SCENE = """
+schema_version: 1
+name: density-{rho}
+description: A school at {rho} fish/m3 swimming across the fan, for the count-against-density curve.
+seed: 1
+sonar:
+  pose: {{position_m: [0.0, 0.0, 1.0], boresight: [0.0, 0.0, 1.0], receiver_axis: [0.0, 1.0, 0.0]}}
+  levels: {{source_level_db: 210.0}}
+medium: {{temperature_c: 10.0, salinity_psu: 35.0, depth_m: 20.0}}
+noise: {{enabled: true, model: sea}}
+targets:
+  populations:
+    - kind: school
+      center_m: [0.0, 0.0, 19.0]
+      semi_axes_m: [1.2, 2.0, 2.0]
+      heading_deg: 0
+      density_per_m3: {rho}
+      nearest_neighbour_m: 0.25
+      redraw: false
+      random_phase: true
+      backscatter: {{model: swimbladder, length_m: 0.06, width_m: 0.01, tilt_sd_deg: 10.0}}
+      swim: {{speed_m_s: 0.15, speed_sd_m_s: 0.02, heading_deg: 0, polarisation: 0.97,
+             turn_sd_deg_per_s: 3.0, vertical_sd_m_s: 0.01}}
+      label: school
+pings: {{count: {pings}, interval_s: 0.25}}
+processing:
+  image: {{range_m: [14.5, 23.5]}}
+  detect:
+    method: rayleigh
+    pfa_image: 1.0e-6
+    noise: {{source: region, range_m: [14.5, 16.5], estimator: ml}}
+  count: {{range_m: [17.5, 20.5]}}
+"""
+
+
+def _run(rho, seed):
+    """(per-ping counted, per-ping true, track summary) of one run."""
+    import acoustics
+    import processing
+    from acoustics.scene import scene_from_text
+    from processing.base.contract import COUNTS_GROUP
+    from processing.tracking.tracks import track, track_summary
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scene = scene_from_text(SCENE.format(rho=rho, pings=PINGS))
+        tree = processing.count(acoustics.simulate(scene, seed=seed))
+        c = tree[COUNTS_GROUP].ds
+        s = track_summary(track(tree))["summary"]
+    return c["count_after"].values.astype(float), c["true_in_volume"].values.astype(float), s
+
+
+def density_curve():
+    """Rows of the curve: one dict per density."""
+    out = []
+    for rho in DENSITIES:
+        pc, pt, runs = [], [], []
+        t0 = time.perf_counter()
+        for seed in SEEDS:
+            c, t, s = _run(rho, seed)
+            pc.append(c)
+            pt.append(t)
+            runs.append(s)
+        pc, pt = np.concatenate(pc), np.concatenate(pt)
+        tc = np.array([r["track_count"] for r in runs], float)
+        tt = np.array([r["true_passages"] for r in runs], float)
+        seed_nmae = [abs(a - b) / b for a, b in zip(tc, tt) if b > 0]
+        ping_seed = np.array([np.abs(c_ - t_).sum() / t_.sum() if t_.sum() else np.nan
+                              for c_, t_ in zip(np.split(pc, len(SEEDS)), np.split(pt, len(SEEDS)))])
+        hota = np.array([r["hota"] if r["hota"] is not None else np.nan for r in runs], float)
+        idf1 = np.array([r["idf1"] if r["idf1"] is not None else np.nan for r in runs], float)
+        out.append({"rho": rho, "true_per_ping": float(pt.mean()), "counted_per_ping": float(pc.mean()),
+                    "ping_bias": float((pc - pt).sum() / pt.sum()), "ping_nmae": float(np.abs(pc - pt).sum() / pt.sum()),
+                    "ping_nmae_sd": float(np.nanstd(ping_seed, ddof=1)),
+                    "true_passages": int(tt.sum()), "tracks": int(tc.sum()),
+                    "track_bias": float((tc - tt).sum() / tt.sum()), "track_nmae": float(np.abs(tc - tt).sum() / tt.sum()),
+                    "track_nmae_sd": float(np.std(seed_nmae, ddof=1)) if len(seed_nmae) > 1 else float("nan"),
+                    "hota": float(np.nanmean(hota)), "hota_sd": float(np.nanstd(hota, ddof=1)),
+                    "idf1": float(np.nanmean(idf1)), "idf1_sd": float(np.nanstd(idf1, ddof=1)),
+                    "seconds": time.perf_counter() - t0})
+        print(f"  ρ = {rho}: {out[-1]['seconds']:.0f} s", flush=True)
+    return out
+
+
+def _crossing(rows, key):
+    """The lowest density at which ``key`` passes NMAE_LIMIT (linear interpolation between the
+    densities around the first crossing), or None."""
+    for a, b in zip(rows, rows[1:]):
+        if a[key] <= NMAE_LIMIT < b[key]:
+            f = (NMAE_LIMIT - a[key]) / (b[key] - a[key])
+            return float(np.exp(np.log(a["rho"]) + f * (np.log(b["rho"]) - np.log(a["rho"]))))
+    return None
+
+
+def _figure(rows, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    rho = np.array([r["rho"] for r in rows])
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    ax = axes[0]
+    for key, label, m, col in (("ping", "per-ping count", "s", "tab:blue"), ("track", "track count", "o", "tab:green")):
+        ax.errorbar(rho, [100 * r[f"{key}_nmae"] for r in rows], yerr=[100 * r[f"{key}_nmae_sd"] for r in rows],
+                    fmt=m + "-", color=col, ms=4, capsize=3, label=f"nMAE, {label}")
+        ax.plot(rho, [100 * r[f"{key}_bias"] for r in rows], m + "--", color=col, ms=4, mfc="none",
+                label=f"bias, {label}")
+    # the per-ping count's ghosts reach hundreds of per cent: linear within ±10 %, log beyond
+    ax.set_yscale("symlog", linthresh=10)
+    ax.axhline(100 * NMAE_LIMIT, color="k", lw=0.8, ls=":", label="nMAE 10 %")
+    ax.axhline(0, color="grey", lw=0.6)
+    ax.axvline(THESIS_DENSITY, color="tab:red", lw=0.8, ls="-.", label="thesis' density 0.46 m⁻³")
+    ax.set_xscale("log")
+    ax.set_xlabel("true density in the counting volume ρ (fish/m³)")
+    ax.set_ylabel("count error (% of the true count; symlog)")
+    ax.set_title("counts against density (error bars: s.d. over seeds)")
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3, which="both")
+    ax = axes[1]
+    for key, label, m in (("hota", "HOTA", "o"), ("idf1", "IDF1", "s")):
+        ax.errorbar(rho, [r[key] for r in rows], yerr=[r[f"{key}_sd"] for r in rows], fmt=m + "-", ms=4,
+                    capsize=3, label=label)
+    ax.axvline(THESIS_DENSITY, color="tab:red", lw=0.8, ls="-.")
+    ax.set_xscale("log")
+    ax.set_ylim(0, 1.02)
+    ax.set_xlabel("true density in the counting volume ρ (fish/m³)")
+    ax.set_ylabel("score (mean ± s.d. over seeds)")
+    ax.set_title("tracking scores against density")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, which="both")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def density_section() -> str:
+    t0 = time.perf_counter()
+    rows = density_curve()
+    seconds = time.perf_counter() - t0
+    fig = ROOT / "docs" / "figures" / "count_vs_density.png"
+    _figure(rows, fig)
+    body = [[f"{r['rho']:g}", f"{r['true_per_ping']:.2f}", f"{r['counted_per_ping']:.2f}",
+             f"{100 * r['ping_bias']:+.1f}", f"{100 * r['ping_nmae']:.1f} ± {100 * r['ping_nmae_sd']:.1f}",
+             f"{r['tracks']} / {r['true_passages']}", f"{100 * r['track_bias']:+.1f}",
+             f"{100 * r['track_nmae']:.1f} ± {100 * r['track_nmae_sd']:.1f}",
+             f"{r['hota']:.3f} ± {r['hota_sd']:.3f}", f"{r['idf1']:.3f} ± {r['idf1_sd']:.3f}"] for r in rows]
+    thesis = next(r for r in rows if r["rho"] == THESIS_DENSITY)
+    cross_t, cross_p = _crossing(rows, "track_nmae"), _crossing(rows, "ping_nmae")
+
+    def where(x, key):
+        if x is not None:
+            return f"passes 10 % near **ρ ≈ {x:.2g} fish/m³**"
+        if all(r[key] <= NMAE_LIMIT for r in rows):
+            return f"stays within 10 % up to ρ = {rows[-1]['rho']:g} fish/m³, the densest run"
+        return "is beyond 10 % already at the sparsest density" if rows[0][key] > NMAE_LIMIT else \
+            "crosses 10 % more than once (see the table)"
+    ok_bias = abs(thesis["track_bias"]) <= 0.05
+    ok_nmae = thesis["track_nmae"] <= 0.05
+    return (
+        "## Counting against density (issue 29)\n\n"
+        "Field counts agree with the truth at typical densities and fall below it as density "
+        "rises, because targets are no longer resolved (Enzenhofer et al. 1998); here the curve "
+        "with true identities. `python benchmarks/validation.py --only density` "
+        "(benchmarks/density.py): a school of swimbladder fish (6 × 1 cm, fish ≥ 0.25 m apart) "
+        "fills an ellipsoid 2.4 × 4 × 4 m around the fan of a down-looking sonar, 17–21 m deep, "
+        f"at density ρ, and swims across the fan at 0.15 m/s; {PINGS} pings 0.25 s apart, "
+        "physical levels and sea noise; the counting volume is the transmit beam from 17.5 to "
+        f"20.5 m, inside the school. {len(DENSITIES)} densities × {len(SEEDS)} seeds "
+        f"({SEEDS[0]}–{SEEDS[-1]}), default settings throughout. *Per-ping*: the count after "
+        "interferometry against the true number in the volume, bias = Σ(counted − true) / Σ "
+        "true and nMAE = Σ|counted − true| / Σ true over all pings of all seeds (± the standard "
+        "deviation of the per-seed nMAE); *tracks*: tracks through the volume against the fish "
+        "that passed through it, the same over the runs (± s.d. of the per-run |error| / true); "
+        "HOTA and IDF1 mean ± s.d. over the seeds. The single-scattering limit of docs/scenes.md "
+        "(τ = n σ_e L ≤ 0.1) is at ρ ≈ 27 fish/m³ through this school's 4 m depth, beyond the "
+        f"densest run here. Run time {seconds:.0f} s ({machine()}).\n\n"
+        + table(["ρ (fish/m³)", "true per ping", "counted per ping", "per-ping bias (%)", "per-ping nMAE (%)",
+                 "tracks / true passages", "track bias (%)", "track nMAE (%)", "HOTA", "IDF1"], body)
+        + "\n\n![counts and scores against density](figures/count_vs_density.png)\n\n"
+        f"**At the thesis' density (0.46 fish/m³)** the track count's bias is "
+        f"{100 * thesis['track_bias']:+.1f} % and its nMAE {100 * thesis['track_nmae']:.1f} % "
+        f"(issue 29's target: both within 5 % — {'met' if ok_bias and ok_nmae else '**not met**'}); the "
+        f"per-ping count's bias {100 * thesis['ping_bias']:+.1f} %, nMAE {100 * thesis['ping_nmae']:.1f} %. "
+        f"The track count's nMAE {where(cross_t, 'track_nmae')}; the per-ping count's "
+        f"{where(cross_p, 'ping_nmae')}. Few fish pass at the sparsest densities (a handful per "
+        "run), so there one fish more or less is tens of per cent: read the low end's nMAE with "
+        "its spread."
+        + (" The per-ping count over-counts the sparse schools: at physical levels (a fish on "
+           "axis 80–90 dB above the noise) the sidelobes, grating ghosts and far range sidelobes "
+           "of strong fish pass the detector and interferometry places some of them inside the "
+           "volume; the tracker's single-target rules and M-of-N confirmation "
+           "remove them. As density rises, fish sharing a resolution cell are counted once "
+           "(the thesis' undercount of dense regions, §6.3.2), which first offsets the ghosts "
+           "and then dominates: both counts fall below the truth, the field's picture "
+           "(Enzenhofer et al. 1998)." if rows[0]["ping_bias"] > 0.2 else ""))
+
+
+if __name__ == "__main__":
+    print(density_section())

@@ -1,0 +1,171 @@
+"""The tracker's parts on their own (processing/tracking/motion.py, association.py, management.py,
+filters.py's resolution gate): each checked against a closed form or a case simple enough to
+reason about, and each replaceable through the settings."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from processing.tracking.association import (gate_threshold, gated_costs, global_nearest_neighbour,
+                                             jpda_weights)
+from processing.tracking.filters import resolution_covariance, track_detections
+from processing.tracking.management import MOfN
+from processing.tracking.motion import AlphaBeta, ConstantVelocityKalman, cv_matrices, motion_model
+
+
+def _iso(n, sd_m):
+    return np.repeat((sd_m**2 * np.eye(3))[None], n, axis=0)
+
+
+def test_kalman_settles_to_the_riccati_steady_state():
+    """After many pings the filter's predicted covariance and gain are those of the discrete
+    algebraic Riccati equation for the same F, Q, H, R (solved independently by scipy): the
+    steady-state αβ gains of the white-acceleration model (Bar-Shalom et al. 2001, §6.5)."""
+    from scipy.linalg import solve_discrete_are
+    T, s_m, a = 0.25, 0.02, 0.3
+    f = ConstantVelocityKalman(a)
+    x, P = np.zeros(6), np.diag([1, 1, 1, 4, 4, 4.0])
+    R = s_m**2 * np.eye(3)
+    for _ in range(400):
+        xp, Pp = f.predict(x, P, T)
+        x, P = f.update(xp, Pp, np.zeros(3), R, T)
+    F = np.array([[1, T], [0, 1.0]])
+    Q = a**2 * np.array([[T**3 / 3, T**2 / 2], [T**2 / 2, T]])
+    H = np.array([[1.0, 0.0]])
+    P_ss = solve_discrete_are(F.T, H.T, Q, np.array([[s_m**2]]))
+    axis = np.ix_([0, 3], [0, 3])
+    np.testing.assert_allclose(Pp[axis], P_ss, rtol=1e-9)
+    K = Pp[:, :3] @ np.linalg.inv(Pp[:3, :3] + R)
+    np.testing.assert_allclose([K[0, 0], K[3, 0]], (P_ss @ H.T / (P_ss[0, 0] + s_m**2)).ravel(), rtol=1e-9)
+
+
+def test_alpha_beta_applies_its_fixed_gains():
+    """One αβ update: position moves α of the innovation, velocity β/T of it."""
+    f = AlphaBeta(alpha=0.4, beta=0.1, speed_sd_m_s=0.5)
+    x = np.array([0, 0, 10.0, 1.0, 0, 0])
+    xp, Pp = f.predict(x, np.eye(6), 0.5)
+    np.testing.assert_allclose(xp, [0.5, 0, 10, 1, 0, 0])
+    z = xp[:3] + np.array([0.2, -0.1, 0.0])
+    xn, _ = f.update(xp, Pp, z, 0.01 * np.eye(3), 0.5)
+    np.testing.assert_allclose(xn[:3] - xp[:3], 0.4 * np.array([0.2, -0.1, 0.0]))
+    np.testing.assert_allclose(xn[3:] - xp[3:], 0.1 * np.array([0.2, -0.1, 0.0]) / 0.5)
+    # its gate: 2R plus the spread of the allowed speed over the interval
+    S = f.innovation_covariance(Pp, 0.01 * np.eye(3), 0.5)
+    np.testing.assert_allclose(S, (0.02 + 0.25**2) * np.eye(3))
+
+
+def test_process_noise_of_a_zero_interval_is_zero_and_motion_model_refuses_unknowns():
+    F, Q = cv_matrices(0.0, 1.0)
+    np.testing.assert_array_equal(F, np.eye(6))
+    np.testing.assert_array_equal(Q, np.zeros((6, 6)))
+    assert isinstance(motion_model("alpha_beta"), AlphaBeta)
+    with pytest.raises(ValueError, match="kalman"):
+        motion_model("particle")
+
+
+def test_chi_square_gate_and_mahalanobis_costs():
+    """The gate is the χ²₃ quantile (scipy's, whether tabulated or not); a detection at k σ
+    along an axis has d² = k²; outside the gate the cost is inf."""
+    from scipy.stats import chi2
+    for p in (0.9, 0.99, 0.95, 0.975):
+        assert gate_threshold(p) == pytest.approx(chi2.ppf(p, 3), rel=1e-12)
+    S = np.broadcast_to(np.diag([0.01, 0.04, 0.09]), (1, 3, 3, 3))
+    det = np.array([[0.2, 0, 0], [0, 0.2, 0], [0, 0, 1.5]])      # 2σ, 1σ, 5σ
+    d2, cost = gated_costs(np.zeros((1, 3)), S, det, gate_threshold(0.99))
+    np.testing.assert_allclose(d2[0, :2], [4.0, 1.0])
+    assert np.isinf(d2[0, 2]) and np.isinf(cost[0, 2])
+    np.testing.assert_allclose(cost[0, :2], d2[0, :2] + np.log(0.01 * 0.04 * 0.09))
+
+
+def test_global_nearest_neighbour_minimises_the_total_not_each_row():
+    """Track 0 is nearest to detection 0 but track 1 can only take detection 0: the global
+    optimum gives 0 → 1 and 1 → 0; inf entries are never assigned."""
+    cost = np.array([[1.0, 2.0], [1.5, np.inf]])
+    r, c = global_nearest_neighbour(cost)
+    assert dict(zip(r.tolist(), c.tolist())) == {0: 1, 1: 0}
+    r, c = global_nearest_neighbour(np.full((2, 2), np.inf))
+    assert r.size == c.size == 0
+    assert global_nearest_neighbour(np.zeros((0, 3)))[0].size == 0
+
+
+def test_jpda_shares_an_ambiguous_detection_and_not_a_clear_one():
+    """Two tracks, one detection equidistant from both: it is shared equally, and by less than
+    a detection one track has to itself (Fitzgerald's β_ij = G_ij / (T_i + D_j − G_ij + B));
+    each track's weights sum to at most 1; nothing outside a gate gets weight."""
+    w = jpda_weights(np.array([[1.0], [1.0]]), detection_probability=0.9, clutter=1e-6)
+    assert w[0, 0] == pytest.approx(w[1, 0]) and w[0, 0] < 0.5 + 1e-9
+    alone = jpda_weights(np.array([[1.0]]), detection_probability=0.9, clutter=1e-6)
+    assert alone[0, 0] > 0.99
+    w = jpda_weights(np.array([[1.0, 1.0], [1.0, np.inf]]), detection_probability=0.9, clutter=1e-6)
+    assert w[1, 1] == 0.0 and np.all(w.sum(axis=1) <= 1 + 1e-12)
+    assert w[0, 1] > w[0, 0]      # equally near, but detection 1 is track 0's alone
+    assert np.all(jpda_weights(np.full((2, 2), np.inf)) == 0)
+
+
+def test_m_of_n_confirmation_deletion_and_birth():
+    m = MOfN(confirm_hits=3, confirm_window=4, max_misses=2, initial_speed_sd_m_s=0.5)
+    assert not m.confirmed(2, 3) and m.confirmed(3, 3) and m.confirmed(3, 4) and not m.confirmed(3, 5)
+    assert m.hopeless(1, 4) and not m.hopeless(1, 2) and m.hopeless(0, 3)
+    assert not m.ended(2) and m.ended(3)
+    x, P = m.birth([1, 2, 3], 0.01 * np.eye(3))
+    np.testing.assert_array_equal(x, [1, 2, 3, 0, 0, 0])
+    np.testing.assert_allclose(np.diag(P), [0.01] * 3 + [0.25] * 3)
+    with pytest.raises(ValueError, match="confirm_window"):
+        MOfN(confirm_hits=4, confirm_window=3)
+
+
+def test_a_custom_management_part_replaces_the_default():
+    """1-of-1 confirmation (every detection a track) through the ``management`` argument: a
+    lone detection becomes a track, which the default 3-of-4 drops."""
+    t = np.arange(5) * 0.25
+    one = track_detections(np.array([2]), t, [[0, 0, 18.0]], _iso(1, 0.01),
+                           management=MOfN(confirm_hits=1, confirm_window=1))
+    assert len(one) == 1 and one[0].pings == [2]
+    assert track_detections(np.array([2]), t, [[0, 0, 18.0]], _iso(1, 0.01)) == []
+
+
+def test_resolution_covariance_is_a_uniform_cell():
+    """On boresight (θ = φ = 0) the cell's spreads are δ_r/√12 along z (range), r δ_θ/√12
+    along x (azimuth) and r δ_φ/√12 along y (elevation), uncorrelated."""
+    C = resolution_covariance([20.0], [0.0], [0.0], range_resolution_m=0.04,
+                              azimuth_resolution_rad=0.027, elevation_resolution_rad=0.015)[0]
+    np.testing.assert_allclose(np.sqrt(np.diag(C)), np.array([20 * 0.027, 20 * 0.015, 0.04]) / np.sqrt(12),
+                               rtol=1e-12)
+    np.testing.assert_allclose(C - np.diag(np.diag(C)), 0.0, atol=1e-15)
+
+
+def test_resolution_gate_keeps_a_split_echo_from_starting_a_second_track():
+    """One fish at 0.35 m/s whose echo shows a second peak 2 cm beside the first in range and
+    ¼ azimuth cell across (a fluctuating swimbladder, an echo merged with a neighbour's) on 3
+    of every 4 pings from ping 8: without the resolution gate the second peak confirms a track
+    of its own (3 of 4); with it the peak lies in the fish's cell and starts nothing — one
+    track, holding every ping."""
+    n, dt = 30, 0.25
+    t = np.arange(n) * dt
+    fish = np.c_[np.zeros(n), np.zeros(n), 20 - 0.35 * t]
+    pings, pos = list(range(n)), list(fish)
+    for k in range(8, n):
+        if k % 4:
+            pings.append(k)
+            pos.append(fish[k] + [0.125 * 0.5 / 2, 0, 0.02])
+    pings, pos = np.array(pings), np.array(pos)
+    R = _iso(len(pings), 0.005)
+    cell = resolution_covariance(np.full(len(pings), 20.0), np.zeros(len(pings)), np.zeros(len(pings)),
+                                 range_resolution_m=0.04, azimuth_resolution_rad=0.5 / 20,
+                                 elevation_resolution_rad=0.015)
+    off = track_detections(pings, t, pos, R, accel_sd_m_s2=0.05)
+    on = track_detections(pings, t, pos, R, resolution_m2=cell, resolution_cells=1.0, accel_sd_m_s2=0.05)
+    assert len(off) == 2
+    assert len(on) == 1 and len(on[0].pings) == n
+    assert all(j >= 0 for j in on[0].detection)
+
+
+def test_tracking_parts_are_chosen_in_the_settings_and_refused_with_one_line():
+    from processing.base.config import ConfigError
+    from processing.settings import ProcessingSettings, TrackSettings
+    assert TrackSettings(association="jpda", method="alpha_beta", resolution_cells=0).association == "jpda"
+    for bad, word in (({"association": "nn"}, "association"), ({"resolution_cells": -1}, "resolution_cells"),
+                      ({"method": "ukf"}, "method")):
+        with pytest.raises((ConfigError, ValueError)) as e:
+            ProcessingSettings.model_validate({"track": bad})
+        assert word in str(e.value) and "Traceback" not in str(e.value)
