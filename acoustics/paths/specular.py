@@ -314,7 +314,7 @@ def _candidates_blocked(V, F, N, S, P, tol, order, starts, centre, radius, axis,
     return k
 
 
-def _blocks(V, F, N, size: int = 32):
+def _blocks(V, F, N, size: int = 16):
     """Facets in Morton (Z-curve) order of their centroids, cut into blocks of ``size``; each
     block's bounding sphere and its vertex normals' cone (axis, half-angle)."""
     cen = V[F].mean(axis=1)
@@ -519,7 +519,7 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
     search_tolerance : float
         Facets are searched this fraction beyond their edges (points found twice are merged).
     cull : bool
-        Skip blocks of 32 neighbouring facets whose normals cannot meet the legs' bisector
+        Skip blocks of 16 neighbouring facets whose normals cannot meet the legs' bisector
         (a conservative bound with a 0.1 rad margin); False tests every facet (the reference
         the tests compare with).
     window : (ndarray (3,), ndarray (3, 3), (az_lo, az_hi, el_lo, el_hi)), optional
