@@ -1199,6 +1199,7 @@ def scaling():
         a.loglog(x, [r["ping_s"] * 1e3 for _, r in ok], "o-", label="time per ping (ms)")
         a.loglog(x, [r["peak_rss_mb"] for _, r in ok], "s--", label="peak RSS (MB)")
         a.axhline(90, color="grey", lw=0.8, ls=":")
+        a.text(x[0], 95, "90 ms: real time at 68 m", color="grey", fontsize=8)
         a.set_xlabel(xl)
         a.grid(True, which="both", alpha=0.3)
         a.legend()
