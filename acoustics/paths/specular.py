@@ -360,8 +360,10 @@ def _blocks_of(V, F, N, normals):
     """:func:`_blocks`, cached (``normals``: the caller's array, before it was normalised)."""
     key = tuple((a.__array_interface__["data"][0], a.shape, float(a.reshape(-1)[::211].sum()))
                 for a in (V, F, normals))
-    for entry in _BLOCK_CACHE:
+    for i, entry in enumerate(_BLOCK_CACHE):
         if entry[0] == key:
+            # most recently used first: a still floor is not pushed out by each ping's new sea
+            _BLOCK_CACHE.insert(0, _BLOCK_CACHE.pop(i))
             return entry[2]
     blocks = _blocks(V, F, N)
     _BLOCK_CACHE.insert(0, (key, (V, F, normals), blocks))
