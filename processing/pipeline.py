@@ -354,7 +354,7 @@ class RecordChain:
         n = len(self.ping_index)
         res = score_all(table, self.truth, volume, n, dr=detected.range_resolution_m,
                         dtheta=detected.azimuth_resolution_rad, gate=st.count.gate_cells,
-                        unresolved=st.count.unresolved_cells)
+                        unresolved=st.count.unresolved_cells, sidelobe=self.sidelobes(detected))
         # the density where the targets are: the range layer the run's located targets occupy
         layer = occupied_range(table["range_m"][table["in_volume"]], volume)
         occupied_m3 = volume.sector_volume_m3(layer) if layer is not None else 0.0
@@ -368,6 +368,26 @@ class RecordChain:
                     res[k] = np.full(n, np.nan)
         return res, {"occupied_range_m": list(layer) if layer is not None else [],
                      "occupied_volume_m3": occupied_m3}
+
+    def sidelobes(self, detected: Detected) -> np.ndarray:
+        """Which detections the count takes for a stronger one's sidelobe (``count.sidelobe_db``,
+        :func:`processing.detection.sidelobes.psf_sidelobes`), shape (n_detections,) bool."""
+        from processing.detection.sidelobes import psf_sidelobes
+        st, det = self.settings, detected.table
+        if st.count.sidelobe_db <= 0 or detected.n < 2:
+            return np.zeros(detected.n, bool)
+        return psf_sidelobes(det["ping"], det["range_m"], det["azimuth_rad"], det["amplitude"],
+                             range_resolution_m=detected.range_resolution_m,
+                             azimuth_resolution_rad=detected.azimuth_resolution_rad,
+                             pulse_range_m=self.pulse_range_m, sidelobe_db=st.count.sidelobe_db)
+
+    @cached_property
+    def pulse_range_m(self) -> float:
+        """The compressed pulse's range extent either side of its peak, c T / 2 (m): the reach
+        of its range sidelobes (0 without a replica)."""
+        rec = self.record
+        n = int(np.count_nonzero(np.abs(np.asarray(rec.replica)) > 0))
+        return float(n / rec.rate_hz * rec.sound_speed_m_s / 2) if n and rec.rate_hz > 0 else 0.0
 
     def _target_strength(self, detected: Detected, *, near_field: bool):
         """TS_uncomp, TS_comp and the two-way pattern (dB) of every detection (NaN without a

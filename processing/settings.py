@@ -145,6 +145,12 @@ class CountSettings(ConfigModel):
     """Two true targets closer than this (in resolution cells) count as sharing a resolution
     cell when one is missed: the Rayleigh limit of a Hamming-weighted aperture is ~1.4 of its
     3 dB width."""
+    sidelobe_db: NonNegativeReal = Field(30.0, le=100)
+    """A detection more than this (dB) below a stronger detection of its ping, inside that one's
+    point-spread response (within 2.5 range cells at any azimuth: azimuth sidelobes and grating
+    ghosts; within its beam and the compressed pulse's length: range sidelobes), is that one's
+    sidelobe and is not counted (processing/detection/sidelobes.py). 0 counts every detection
+    (the reference, the thesis' counting)."""
 
 
 class TrackSettings(ConfigModel):
