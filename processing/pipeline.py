@@ -374,12 +374,25 @@ class RecordChain:
         :func:`processing.detection.sidelobes.psf_sidelobes`), shape (n_detections,) bool."""
         from processing.detection.sidelobes import psf_sidelobes
         st, det = self.settings, detected.table
-        if st.count.sidelobe_db <= 0 or detected.n < 2:
+        if (st.count.sidelobe_db <= 0 and st.count.ghost_db <= 0) or detected.n < 2:
             return np.zeros(detected.n, bool)
         return psf_sidelobes(det["ping"], det["range_m"], det["azimuth_rad"], det["amplitude"],
                              range_resolution_m=detected.range_resolution_m,
                              azimuth_resolution_rad=detected.azimuth_resolution_rad,
-                             pulse_range_m=self.pulse_range_m, sidelobe_db=st.count.sidelobe_db)
+                             pulse_range_m=self.pulse_range_m, sidelobe_db=st.count.sidelobe_db,
+                             elevation_rad=det.get("elevation_rad"), ghosts=self.ghost_geometry,
+                             ghost_db=st.count.ghost_db)
+
+    @cached_property
+    def ghost_geometry(self) -> list:
+        """The ghosts of the detection image's subarray: (offset in sin θ, k δ) each
+        (:func:`processing.detection.sidelobes.ghost_geometry`)."""
+        from processing.detection.sidelobes import ghost_geometry
+        rec, st = self.record, self.settings
+        pos = np.asarray(rec.element_position_m, float)
+        sel = np.asarray(rec.element_subarray).astype(str) == st.detect.image_group
+        return ghost_geometry(pos[sel] if sel.sum() >= 2 else pos,
+                              rec.sound_speed_m_s / rec.center_frequency_hz)
 
     @cached_property
     def pulse_range_m(self) -> float:

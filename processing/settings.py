@@ -151,6 +151,12 @@ class CountSettings(ConfigModel):
     ghosts; within its beam and the compressed pulse's length: range sidelobes), is that one's
     sidelobe and is not counted (processing/detection/sidelobes.py). 0 counts every detection
     (the reference, the thesis' counting)."""
+    ghost_db: NonNegativeReal = Field(6.0, le=100)
+    """A detection within 2.5 range cells of a stronger one, at that one's ghost azimuth
+    (sin θ ± λ / (2 d) for a staggered receiver subarray of pitch d, ± λ / d otherwise) and no
+    more than this (dB) above the ghost level its interferometric elevation predicts
+    (|tan(k δ sin φ)| for a stagger ±δ), is its ghost and is not counted. 0: no ghost rule (the
+    reference)."""
 
 
 class TrackSettings(ConfigModel):

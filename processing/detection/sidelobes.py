@@ -8,39 +8,57 @@ point-spread function:
   the main lobe (the Hamming range window's) and −70 to −80 dB out to the pulse's whole length,
   c T / 2 either side (5.2 m for ABACUS' 7 ms pulse); interferometry gives each a phase, so some
   are placed inside the counting volume;
-* **across azimuth, at its range** — the spatial window's azimuth sidelobes and the receiver's
-  grating ghosts, 20–35 dB down, within the range main lobe (± 2.5 range cells, the rule of
-  :func:`processing.backscatter.single_targets.single_targets`).
+* **across azimuth, at its range** — the spatial window's azimuth sidelobes, 20–35 dB down, within
+  the range main lobe (± 2.5 range cells, the rule of
+  :func:`processing.backscatter.single_targets.single_targets`);
+* **at its grating-ghost azimuth, at its range** — a receiver subarray of pitch d whose alternate
+  elements are offset ±δ across the array (staggered) images a target at elevation φ also at
+  sin θ ± λ / (2 d) (±7° for ABACUS), |tan(k δ sin φ)| below it (−24 dB at 1°, −9 dB at 3°;
+  thesis §4.5.6, docs/validation.md's Ghosts); a plain subarray at sin θ ± λ / d, at the
+  target's level. A fish beside the fan in elevation is not counted, but its ghost has a phase of
+  its own and interferometry may place it inside the volume; and a target beyond the span
+  (ABACUS' receivers: its grating lobe at sin θ ± λ / d, ±14°) at the target's level.
 
 A real fish inside the counting volume is inside the transmitter's main lobe, so its echo is at
 most a few dB below axis, and fish of one school differ in TS by a few dB (tilt): a detection
 more than ``sidelobe_db`` (default 30 dB) below a stronger detection of its ping, inside that
-one's response, is taken for the response. The price: a real fish that much weaker, in a
-stronger one's beam within a pulse length, or at its range, is not counted.
+one's range or azimuth response, is taken for that response. At the ghost azimuth the level is
+predicted from the stronger detection's own interferometric elevation: a detection no more than
+``ghost_db`` (default 6 dB) above that prediction is its ghost. The price: a real fish that much
+weaker, in a stronger one's beam within a pulse length, at its range, or at its range and ghost
+azimuth, is not counted.
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["psf_sidelobes"]
+__all__ = ["psf_sidelobes", "ghost_geometry"]
 
 #: range main lobe and near sidelobes of the windowed compressed pulse, in range resolution cells
 NEAR_RANGE_CELLS = 2.5
 #: azimuth main lobe half-width of a beam, in azimuth resolution cells (3 dB widths)
 BEAM_CELLS = 1.5
+#: how close (azimuth resolution cells, in sin θ) a detection must lie to a predicted ghost
+GHOST_CELLS = 0.5
 
 
 def psf_sidelobes(ping_rows, range_m, azimuth_rad, amplitude, *, range_resolution_m: float,
-                  azimuth_resolution_rad: float, pulse_range_m: float, sidelobe_db: float):
-    """Detections that lie in the point-spread response of a much stronger detection of their ping.
+                  azimuth_resolution_rad: float, pulse_range_m: float, sidelobe_db: float,
+                  elevation_rad=None, ghosts=(), ghost_db: float = 0.0):
+    """Detections that lie in the point-spread response of a stronger detection of their ping.
 
     Detection j is a sidelobe of a stronger detection i of the same ping when i is more than
     ``sidelobe_db`` stronger and j lies
 
-    * within ``NEAR_RANGE_CELLS`` range cells of i, at any azimuth (azimuth sidelobes, grating
-      ghosts, near range sidelobes), or
+    * within ``NEAR_RANGE_CELLS`` range cells of i, at any azimuth (azimuth sidelobes, near range
+      sidelobes), or
     * within ``BEAM_CELLS`` azimuth cells of i and within ``pulse_range_m`` in range (the
-      compressed pulse's range sidelobes in i's beam).
+      compressed pulse's range sidelobes in i's beam);
+
+    and it is i's ghost when it lies within ``NEAR_RANGE_CELLS`` range cells of i, within
+    ``GHOST_CELLS`` azimuth cells of sin θ_i ± p for a ghost (p, k δ) of ``ghosts``, and its
+    amplitude is at most ``ghost_db`` above that ghost's predicted level,
+    A_i min(1, |tan(k δ sin φ_i)|) (A_i where k δ is None).
 
     Parameters
     ----------
@@ -55,22 +73,41 @@ def psf_sidelobes(ping_rows, range_m, azimuth_rad, amplitude, *, range_resolutio
         the near rule.
     sidelobe_db : float
         How much stronger (dB, amplitude ratio 20 log10) the stronger detection must be; 0 or
-        less marks nothing (the reference: every detection counted).
+        less: no sidelobe rule (the reference: every detection counted).
+    elevation_rad : array_like, shape (n,), optional
+        Interferometric elevation (rad) of each detection, for the ghost level; without it (or
+        where NaN) a ghost is predicted at the stronger detection's own level.
+    ghosts : sequence of (float, float or None)
+        The receiver's ghosts (:func:`ghost_geometry`): offset p in sin θ and k δ (rad; the
+        ghost's level is |tan(k δ sin φ)| re its target; None: the target's level, a grating
+        lobe). Empty: no ghost rule.
+    ghost_db : float
+        Margin (dB) above the predicted ghost level; 0 or less: no ghost rule.
 
     Returns
     -------
     ndarray of bool, shape (n,)
-        True where the detection is taken for a stronger one's sidelobe. Non-finite amplitudes
-        are never stronger and never marked.
+        True where the detection is taken for a stronger one's sidelobe or ghost. Non-finite
+        amplitudes or positions are never stronger and never marked.
     """
     rows = np.asarray(ping_rows, int)
     r = np.asarray(range_m, float)
     az = np.asarray(azimuth_rad, float)
     a = np.asarray(amplitude, float)
     out = np.zeros(rows.size, bool)
-    if sidelobe_db <= 0 or rows.size < 2:
+    ghosts = [(float(p), ph) for p, ph in ghosts if p > 0] if ghost_db > 0 else []
+    if (sidelobe_db <= 0 and not ghosts) or rows.size < 2:
         return out
-    ratio = 10.0 ** (sidelobe_db / 20.0)
+    ratio = 10.0 ** (sidelobe_db / 20.0) if sidelobe_db > 0 else np.inf
+    el = np.asarray(elevation_rad, float) if elevation_rad is not None else np.full(rows.size, np.nan)
+    ghost_amp = []          # per ghost: the largest amplitude its ghost may have, shape (n,)
+    for _, phase in ghosts:
+        level = np.ones(rows.size)
+        if phase is not None:
+            with np.errstate(invalid="ignore"):
+                lv = np.abs(np.tan(phase * np.sin(el)))
+            level = np.where(np.isfinite(lv), np.minimum(lv, 1.0), 1.0)
+        ghost_amp.append(a * level * 10.0 ** (ghost_db / 20.0))
     finite = np.isfinite(a) & np.isfinite(r) & np.isfinite(az)
     order = np.argsort(rows, kind="stable")
     bounds = np.flatnonzero(np.diff(rows[order])) + 1
@@ -80,9 +117,48 @@ def psf_sidelobes(ping_rows, range_m, azimuth_rad, amplitude, *, range_resolutio
             continue
         dr = np.abs(r[k][:, None] - r[k][None, :])
         daz = np.abs(az[k][:, None] - az[k][None, :])
+        near = dr <= NEAR_RANGE_CELLS * range_resolution_m
         # i (rows) far above j (columns)
         far_above = a[k][:, None] > ratio * a[k][None, :]
-        near = dr <= NEAR_RANGE_CELLS * range_resolution_m
         in_beam = (daz <= BEAM_CELLS * azimuth_resolution_rad) & (dr <= max(pulse_range_m, 0.0))
-        out[k] = np.any(far_above & (near | in_beam), axis=0)
+        hit = far_above & (near | in_beam)
+        if ghosts:
+            dsin = np.abs(np.sin(az[k])[None, :] - np.sin(az[k])[:, None])
+            stronger = a[k][:, None] > a[k][None, :]
+            for (period, _), amp in zip(ghosts, ghost_amp):
+                at_ghost = np.abs(dsin - period) <= GHOST_CELLS * azimuth_resolution_rad
+                hit |= near & at_ghost & stronger & (a[k][None, :] <= amp[k][:, None])
+        out[k] = np.any(hit, axis=0)
     return out
+
+
+def ghost_geometry(element_position_m, wavelength_m: float) -> list:
+    """The ghosts of a line subarray along the sonar's x axis: offsets in sin θ and levels.
+
+    Parameters
+    ----------
+    element_position_m : array_like, shape (n, 3)
+        The subarray's element positions (m, sonar frame: x along the array, y across it).
+    wavelength_m : float
+
+    Returns
+    -------
+    list of (float, float or None)
+        (offset in sin θ, k δ): for a staggered subarray (alternate elements offset ±δ across
+        it) the stagger's ghost (λ / (2 d), k δ: |tan(k δ sin φ)| below a target at elevation φ)
+        and the grating lobe (λ / d, None: at the target's level); for a plain one the grating
+        lobe only; empty for fewer than two elements or a non-finite geometry.
+    """
+    pos = np.asarray(element_position_m, float).reshape(-1, 3)
+    if pos.shape[0] < 2 or not np.all(np.isfinite(pos)) or not wavelength_m > 0:
+        return []
+    order = np.argsort(pos[:, 0])
+    x, y = pos[order, 0], pos[order, 1]
+    d = float(np.median(np.diff(x)))
+    if not d > 0:
+        return []
+    half_offset = 0.5 * abs(float(np.mean(y[0::2]) - np.mean(y[1::2]))) if pos.shape[0] >= 4 else 0.0
+    if half_offset > 1e-3 * d:
+        return [(float(wavelength_m / (2 * d)), float(2 * np.pi / wavelength_m * half_offset)),
+                (float(wavelength_m / d), None)]
+    return [(float(wavelength_m / d), None)]
