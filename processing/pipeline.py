@@ -370,37 +370,17 @@ class RecordChain:
                      "occupied_volume_m3": occupied_m3}
 
     def sidelobes(self, detected: Detected) -> np.ndarray:
-        """Which detections the count takes for a stronger one's sidelobe (``count.sidelobe_db``,
-        :func:`processing.detection.sidelobes.psf_sidelobes`), shape (n_detections,) bool."""
-        from processing.detection.sidelobes import psf_sidelobes
-        st, det = self.settings, detected.table
+        """Which detections the count takes for a stronger one's sidelobe or ghost
+        (``count.sidelobe_db``, ``count.ghost_db``; :mod:`processing.detection.sidelobes`),
+        shape (n_detections,) bool."""
+        from processing.detection.sidelobes import counted_sidelobes
+        st = self.settings
         if (st.count.sidelobe_db <= 0 and st.count.ghost_db <= 0) or detected.n < 2:
             return np.zeros(detected.n, bool)
-        return psf_sidelobes(det["ping"], det["range_m"], det["azimuth_rad"], det["amplitude"],
-                             range_resolution_m=detected.range_resolution_m,
-                             azimuth_resolution_rad=detected.azimuth_resolution_rad,
-                             pulse_range_m=self.pulse_range_m, sidelobe_db=st.count.sidelobe_db,
-                             elevation_rad=det.get("elevation_rad"), ghosts=self.ghost_geometry,
-                             ghost_db=st.count.ghost_db)
-
-    @cached_property
-    def ghost_geometry(self) -> list:
-        """The ghosts of the detection image's subarray: (offset in sin θ, k δ) each
-        (:func:`processing.detection.sidelobes.ghost_geometry`)."""
-        from processing.detection.sidelobes import ghost_geometry
-        rec, st = self.record, self.settings
-        pos = np.asarray(rec.element_position_m, float)
-        sel = np.asarray(rec.element_subarray).astype(str) == st.detect.image_group
-        return ghost_geometry(pos[sel] if sel.sum() >= 2 else pos,
-                              rec.sound_speed_m_s / rec.center_frequency_hz)
-
-    @cached_property
-    def pulse_range_m(self) -> float:
-        """The compressed pulse's range extent either side of its peak, c T / 2 (m): the reach
-        of its range sidelobes (0 without a replica)."""
-        rec = self.record
-        n = int(np.count_nonzero(np.abs(np.asarray(rec.replica)) > 0))
-        return float(n / rec.rate_hz * rec.sound_speed_m_s / 2) if n and rec.rate_hz > 0 else 0.0
+        return counted_sidelobes(detected.table, self.record, st.count,
+                                 range_resolution_m=detected.range_resolution_m,
+                                 azimuth_resolution_rad=detected.azimuth_resolution_rad,
+                                 image_group=st.detect.image_group)
 
     def _target_strength(self, detected: Detected, *, near_field: bool):
         """TS_uncomp, TS_comp and the two-way pattern (dB) of every detection (NaN without a

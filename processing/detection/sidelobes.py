@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["psf_sidelobes", "ghost_geometry"]
+__all__ = ["psf_sidelobes", "ghost_geometry", "counted_sidelobes"]
 
 #: range main lobe and near sidelobes of the windowed compressed pulse, in range resolution cells
 NEAR_RANGE_CELLS = 2.5
@@ -162,3 +162,40 @@ def ghost_geometry(element_position_m, wavelength_m: float) -> list:
         return [(float(wavelength_m / (2 * d)), float(2 * np.pi / wavelength_m * half_offset)),
                 (float(wavelength_m / d), None)]
     return [(float(wavelength_m / d), None)]
+
+
+def counted_sidelobes(table: dict, record, count_settings, *, range_resolution_m: float,
+                      azimuth_resolution_rad: float, image_group: str = "A") -> np.ndarray:
+    """The detections the count leaves out as sidelobes or ghosts (``count.sidelobe_db``,
+    ``count.ghost_db``), with the pulse's range extent and the ghosts from the record.
+
+    Parameters
+    ----------
+    table : dict of ndarray, each shape (n,)
+        Detections: ``ping``, ``range_m``, ``azimuth_rad``, ``amplitude``, ``elevation_rad``.
+    record : SonarRecord
+        Its ``replica``, ``rate_hz``, ``sound_speed_m_s``, ``center_frequency_hz``,
+        ``element_position_m`` and ``element_subarray`` (the pulse and the receiver geometry).
+    count_settings : processing.settings.CountSettings
+    range_resolution_m, azimuth_resolution_rad : float
+    image_group : str
+        The subarray the detections were made on.
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
+    n = len(table["ping"])
+    cs = count_settings
+    if (cs.sidelobe_db <= 0 and cs.ghost_db <= 0) or n < 2:
+        return np.zeros(n, bool)
+    c = float(record.sound_speed_m_s)
+    taps = int(np.count_nonzero(np.abs(np.asarray(record.replica)) > 0))
+    pulse_range_m = taps / record.rate_hz * c / 2 if taps and record.rate_hz > 0 else 0.0
+    pos = np.asarray(record.element_position_m, float)
+    sel = np.asarray(record.element_subarray).astype(str) == image_group
+    ghosts = ghost_geometry(pos[sel] if sel.sum() >= 2 else pos, c / float(record.center_frequency_hz))
+    return psf_sidelobes(table["ping"], table["range_m"], table["azimuth_rad"], table["amplitude"],
+                         range_resolution_m=range_resolution_m, azimuth_resolution_rad=azimuth_resolution_rad,
+                         pulse_range_m=pulse_range_m, sidelobe_db=cs.sidelobe_db,
+                         elevation_rad=table.get("elevation_rad"), ghosts=ghosts, ghost_db=cs.ghost_db)
