@@ -15,6 +15,7 @@ from processing.imaging.beamforming import SubarrayGeometry
 from processing.imaging.compression import RangeFilter
 from processing.base.dataset import TRUTH_GROUP, read_record, source_of
 from processing.detection.detect import candidates, noise_fit, ping_thresholds, score_all, select
+from processing.detection.sidelobes import counted_sidelobes
 from processing.imaging.images import form_images
 from processing.backscatter.calibration import beam_solid_angle_sr, calibration_of, range_energy_width_m
 from processing.backscatter.echo_integration import volume_backscattering
@@ -110,9 +111,12 @@ def evaluate(tree: xr.DataTree, settings_list) -> dict:
              for k, f in floors.items()}
     for i, (st, key, im, volume, mags, thr, pool_key) in enumerate(plans):
         table = select(pools[pool_key], thr)
+        side = counted_sidelobes(table, rec, st.count, range_resolution_m=im.range_resolution_m,
+                                 azimuth_resolution_rad=im.azimuth_resolution_rad,
+                                 image_group=st.detect.image_group)
         res = score_all(table, truth, volume, n_pings, dr=im.range_resolution_m,
                         dtheta=im.azimuth_resolution_rad, gate=st.count.gate_cells,
-                        unresolved=st.count.unresolved_cells)
+                        unresolved=st.count.unresolved_cells, sidelobe=side)
         for k, v in res.items():
             if k in out:
                 out[k][i] = v

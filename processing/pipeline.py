@@ -354,7 +354,7 @@ class RecordChain:
         n = len(self.ping_index)
         res = score_all(table, self.truth, volume, n, dr=detected.range_resolution_m,
                         dtheta=detected.azimuth_resolution_rad, gate=st.count.gate_cells,
-                        unresolved=st.count.unresolved_cells)
+                        unresolved=st.count.unresolved_cells, sidelobe=self.sidelobes(detected))
         # the density where the targets are: the range layer the run's located targets occupy
         layer = occupied_range(table["range_m"][table["in_volume"]], volume)
         occupied_m3 = volume.sector_volume_m3(layer) if layer is not None else 0.0
@@ -368,6 +368,19 @@ class RecordChain:
                     res[k] = np.full(n, np.nan)
         return res, {"occupied_range_m": list(layer) if layer is not None else [],
                      "occupied_volume_m3": occupied_m3}
+
+    def sidelobes(self, detected: Detected) -> np.ndarray:
+        """Which detections the count takes for a stronger one's sidelobe or ghost
+        (``count.sidelobe_db``, ``count.ghost_db``; :mod:`processing.detection.sidelobes`),
+        shape (n_detections,) bool."""
+        from processing.detection.sidelobes import counted_sidelobes
+        st = self.settings
+        if (st.count.sidelobe_db <= 0 and st.count.ghost_db <= 0) or detected.n < 2:
+            return np.zeros(detected.n, bool)
+        return counted_sidelobes(detected.table, self.record, st.count,
+                                 range_resolution_m=detected.range_resolution_m,
+                                 azimuth_resolution_rad=detected.azimuth_resolution_rad,
+                                 image_group=st.detect.image_group)
 
     def _target_strength(self, detected: Detected, *, near_field: bool):
         """TS_uncomp, TS_comp and the two-way pattern (dB) of every detection (NaN without a

@@ -145,6 +145,18 @@ class CountSettings(ConfigModel):
     """Two true targets closer than this (in resolution cells) count as sharing a resolution
     cell when one is missed: the Rayleigh limit of a Hamming-weighted aperture is ~1.4 of its
     3 dB width."""
+    sidelobe_db: NonNegativeReal = Field(30.0, le=100)
+    """A detection more than this (dB) below a stronger detection of its ping, inside that one's
+    point-spread response (within 2.5 range cells at any azimuth: azimuth sidelobes and grating
+    ghosts; within its beam and the compressed pulse's length: range sidelobes), is that one's
+    sidelobe and is not counted (processing/detection/sidelobes.py). 0 counts every detection
+    (the reference, the thesis' counting)."""
+    ghost_db: NonNegativeReal = Field(6.0, le=100)
+    """A detection within 2.5 range cells of a stronger one, at that one's ghost azimuth
+    (sin θ ± λ / (2 d) for a staggered receiver subarray of pitch d, ± λ / d otherwise) and no
+    more than this (dB) above the ghost level its interferometric elevation predicts
+    (|tan(k δ sin φ)| for a stagger ±δ), is its ghost and is not counted. 0: no ghost rule (the
+    reference)."""
 
 
 class TrackSettings(ConfigModel):
@@ -162,6 +174,13 @@ class TrackSettings(ConfigModel):
     prediction, and no new track starts within it of a confirmed track (two fish closer than a
     cell are not told apart; the cell's spread is δ/√12 per axis);
     0 turns it off (processing.tracking.filters.track_detections)."""
+    confirm_resolved: bool = True
+    """With the resolution gate: a tentative track's hit counts towards confirmation only when
+    its detection lies outside the resolution gate of every senior track (confirmed, or with
+    more hits, or as many and born first) that took a detection at that ping — the resolution
+    gate's rule for births carried through the confirmation window, so that two peaks of one
+    merged echo born together (the first pings, before any track is confirmed) confirm one
+    track, not two (processing.tracking.filters.track_detections). False: every hit counts."""
     gate_probability: Real = Field(0.99, gt=0.5, lt=1)
     """Chi-square gate (3 degrees of freedom) on the innovation's Mahalanobis distance."""
     accel_sd_m_s2: PositiveReal = Field(0.05, le=100)
@@ -177,9 +196,9 @@ class TrackSettings(ConfigModel):
     confirm_hits: PositiveCount = Field(3, le=100)
     """Detections a tentative track needs within its first ``confirm_window`` pings."""
     confirm_window: PositiveCount = Field(4, le=100)
-    max_misses: Count = Field(6, le=100)
-    """Consecutive pings without a detection after which a track ends (6: a fish hidden for
-    1.5 s in a neighbour's echo at 0.25 s pings keeps its track; docs/validation.md, "Tracking")."""
+    max_misses: Count = Field(10, le=100)
+    """Consecutive pings without a detection after which a track ends (10: a fish hidden for
+    2.5 s in a neighbour's echo at 0.25 s pings keeps its track; docs/validation.md, "Tracking")."""
     sidelobe_db: NonNegativeReal = Field(20.0, le=100)
     """Single targets: a detection within 2.5 range cells of one this much stronger (dB), or
     weaker and in its resolution cell, is taken as its range or azimuth sidelobe (or ghost) and

@@ -80,9 +80,10 @@ def test_resolved_scene_fills_every_default(write_scene):
         assert key in text, key
     # the only nulls left are choices made at run time: explicit arrays (preset used), the
     # reverberation range (end of the record), ray threads (every core) and the platform's
-    # motion (none: a still platform) and physical levels (none: the thesis' units)
+    # motion (none: a still platform), physical levels (none: the thesis' units) and the
+    # specular search's fan (none: every facet)
     allowed = ("transmitter: null", "receiver: null", "density_per_m3: null", "max_range_m: null",
-               "ray_threads: null", "motion: null", "levels: null")
+               "ray_threads: null", "motion: null", "levels: null", "beam_level_db: null")
     body = text.split("processing:")[0]
     for a in allowed:
         body = body.replace(a, "")

@@ -160,6 +160,33 @@ def test_resolution_gate_keeps_a_split_echo_from_starting_a_second_track():
     assert all(j >= 0 for j in on[0].detection)
 
 
+def test_confirm_resolved_keeps_a_split_echo_born_at_the_first_ping_from_a_second_track():
+    """The same split echo from the first ping on, before any track is confirmed: without
+    ``confirm_resolved`` both peaks are born together and both tracks confirm (the resolution
+    gate blocks births only near confirmed tracks); with it the junior track's hits all lie in
+    the senior's cell, so it never confirms — one track. A second fish that swims off sideways
+    from ping 12 (resolved from then on) still gets its own track."""
+    n, dt = 30, 0.25
+    t = np.arange(n) * dt
+    fish = np.c_[np.zeros(n), np.zeros(n), 20 - 0.35 * t]
+    peak = fish + [0.125 * 0.5 / 2, 0, 0.02]
+    pings, pos = list(range(n)) + list(range(n)), list(fish) + list(peak)
+    pings, pos = np.array(pings), np.array(pos)
+    R = _iso(len(pings), 0.005)
+    cell = resolution_covariance(np.full(len(pings), 20.0), np.zeros(len(pings)), np.zeros(len(pings)),
+                                 range_resolution_m=0.04, azimuth_resolution_rad=0.5 / 20,
+                                 elevation_resolution_rad=0.015)
+    kw = dict(resolution_m2=cell, resolution_cells=1.0, accel_sd_m_s2=0.05)
+    assert len(track_detections(pings, t, pos, R, confirm_resolved=False, **kw)) == 2
+    on = track_detections(pings, t, pos, R, confirm_resolved=True, **kw)
+    assert len(on) == 1 and len(on[0].pings) == n
+    # a real second fish: side by side (within the cell) for 3 s, then off sideways at 0.3 m/s
+    other = peak.copy()
+    other[12:, 0] += 0.3 * (t[12:] - t[12])
+    pos2 = np.concatenate([fish, other])
+    assert len(track_detections(pings, t, pos2, R, confirm_resolved=True, **kw)) == 2
+
+
 def test_tracking_parts_are_chosen_in_the_settings_and_refused_with_one_line():
     from processing.base.config import ConfigError
     from processing.settings import ProcessingSettings, TrackSettings

@@ -80,6 +80,7 @@ class RayScene:
     medium: Medium
     frequency_hz: float
     _reverb_rays: tuple | None = None
+    _reverb_fan: tuple | None = None
     _mesh_target_scatterers: VirtualScatterers | None = None
     _mesh_target_view: bytes | None = None
     hit_sample: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
@@ -91,6 +92,12 @@ class RayScene:
     """(mesh index, start, SpecularPoints, visible) of the last ``multipath`` call (views)."""
     _normal_cache: dict = field(default_factory=dict)
     time_s: float = 0.0
+    fan_extent_rad: tuple | None = None
+    """(az_lo, az_hi, el_lo, el_hi) (rad) of the transmitter's principal cuts above
+    ``effects.specular.beam_level_db`` in the sonar frame; None: specular search everywhere."""
+    rx_fan_extent_rad: tuple | None = None
+    """The same for one receiver element (a receive leg's bounce point outside it reaches the
+    element below the level)."""
 
     # ------------------------------------------------------------------- the sea
     @property
@@ -107,12 +114,15 @@ class RayScene:
         self.meshes = [sm.at_time(sm.spec.mesh.time_offset_s + time_s) if sm.moving else sm
                        for sm in self.meshes]
         counts = self.caster.rays_cast
-        self.caster = RayCaster(self.meshes, threads=self.caster.threads)
+        self.caster = RayCaster(self.meshes, threads=self.caster.threads, previous=self.caster)
         self.caster.rays_cast = counts
         self._reverb_rays = None
         self._mesh_target_scatterers = None
         self._mesh_target_view = None
-        self._normal_cache.clear()
+        # a still mesh's vertex normals stay (a rough floor's cost as much as its search)
+        still = {id(sm.mesh) for sm in self.meshes if not sm.moving}
+        for key in [k for k in self._normal_cache if k not in still]:
+            del self._normal_cache[key]
         self.time_s = float(time_s)
 
     # ---------------------------------------------------------------- occlusion
@@ -168,8 +178,12 @@ class RayScene:
         return VirtualScatterers(pts, pts.copy(), amp * np.exp(1j * phase),
                                  np.full(n, "reverberation"))
 
-    def _cast_reverberation_rays(self, scene, setup, seed, view: Pose | None = None):
-        spec = scene.effects.reverberation
+    def _reverberation_fan(self, spec, setup, seed):
+        """The fan's unit directions (n, 3) in the sonar frame and their solid angles (n,) (sr):
+        fixed for a run (frozen jitter), so made once, whatever the views."""
+        key = (spec.beam_level_db, spec.rays_per_square_degree, int(seed))
+        if self._reverb_fan is not None and self._reverb_fan[0] == key:
+            return self._reverb_fan[1]
         tx = setup.sonar.transmitter
         lvl = spec.beam_level_db
         kw = dict(medium=setup.medium, frequency_hz=self.frequency_hz)
@@ -188,6 +202,12 @@ class RayScene:
         el = el_lo + (ie.ravel() + rng.random(ie.size)) * d_el
         u = np.stack([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)], -1)
         solid = np.cos(el) * d_az * d_el
+        self._reverb_fan = (key, (u, solid))
+        return u, solid
+
+    def _cast_reverberation_rays(self, scene, setup, seed, view: Pose | None = None):
+        spec = scene.effects.reverberation
+        u, solid = self._reverberation_fan(spec, setup, seed)
         s = scene.sampling
         c = setup.medium.sound_speed_m_s
         r_max = spec.max_range_m or c * (s.time_offset_s + s.samples / s.rate_hz) / 2
@@ -287,7 +307,8 @@ class RayScene:
             self._normal_cache[key] = vertex_normals(sm.mesh.vertices, sm.mesh.faces)
         return self._normal_cache[key]
 
-    def specular_legs(self, start, ends, velocities=None, start_velocity=None):
+    def specular_legs(self, start, ends, velocities=None, start_velocity=None, *,
+                      window_extent=None, view=None):
         """One-bounce legs from ``start`` to each of ``ends`` off every curved boundary.
 
         Parameters
@@ -322,10 +343,14 @@ class RayScene:
             if sm.moving and spec.exact_surface:
                 t_sea = sm.time_s
                 exact = (lambda x, y, _s=sm.surface, _t=t_sea: _s.height(x, y, _t), sm.placement)
+            window = None
+            if window_extent is not None:   # a fan: only blocks it reaches, seen from start
+                window = (start, np.eye(3) if view is None else view.rotation, window_extent)
             sp = specular_points(sm.mesh.vertices, sm.mesh.faces, self._normals(i),
                                  np.broadcast_to(start, ends.shape), ends,
                                  newton_iterations=spec.newton_iterations,
-                                 focusing_limit_db=spec.focusing_limit_db, height_field=exact)
+                                 focusing_limit_db=spec.focusing_limit_db, height_field=exact,
+                                 window=window)
             if not len(sp):
                 continue
             if sp.capped.any():
@@ -383,13 +408,17 @@ class RayScene:
             out += frontier
         return out
 
-    def _legs(self, start, p, order, velocities=None, start_velocity=None):
+    def _legs(self, start, p, order, velocities=None, start_velocity=None, *, window_extent=None,
+              view=None, curved_targets=None):
         """Every leg from ``start`` to the targets ``p``: direct, and every bounce sequence of
         :meth:`bounce_sequences` (planar ones by image sources, one with a curved boundary
         through its specular points); as flat rows (target, point, Π R, bounces, dL/dt,
         sequence number, facet), velocities (m/s) in the built frame. Sequence number 0 is the
         direct leg, k ≥ 1 the k-th of :meth:`bounce_sequences`; facet is the curved bounce's
-        facet (−1 without one)."""
+        facet (−1 without one). ``window_extent`` (az_lo, az_hi, el_lo, el_hi; rad, in ``view``'s
+        frame): a fan that a curved bounce seen straight from ``start`` must lie in (the
+        specular fan, effects.specular.beam_level_db); ``curved_targets``: the targets whose
+        legs with a curved bounce are searched (all when None)."""
         n = p.shape[0]
         v = np.zeros((n, 3)) if velocities is None else velocities
         vs = np.zeros(3) if start_velocity is None else start_velocity
@@ -405,8 +434,13 @@ class RayScene:
                  np.zeros(n, int), np.full(n, -1))]
         for number, seq in enumerate(self.bounce_sequences(order), start=1):
             if any(b not in self.planes for b in seq):
-                t, im, c, r, face = self._curved_leg(start, p, seq, velocities, start_velocity)
-                rows.append((t, im, c, np.full(t.size, len(seq)), r, np.full(t.size, number), face))
+                sub = np.arange(n) if curved_targets is None else np.asarray(curved_targets, int)
+                if not sub.size:
+                    continue
+                t, im, c, r, face = self._curved_leg(
+                    start, p[sub], seq, None if velocities is None else velocities[sub], start_velocity,
+                    window_extent=window_extent, view=view)
+                rows.append((sub[t], im, c, np.full(t.size, len(seq)), r, np.full(t.size, number), face))
                 continue
             image, valid, coef = self._unfold(start, p, seq)
             idx = np.flatnonzero(valid)
@@ -434,12 +468,15 @@ class RayScene:
             vel = vel - 2.0 * (vel @ nrm)[..., None] * nrm
         return vel
 
-    def _curved_leg(self, start, p, seq, velocities=None, start_velocity=None):
+    def _curved_leg(self, start, p, seq, velocities=None, start_velocity=None, *, window_extent=None,
+                    view=None):
         """Legs start → seq → target with one curved boundary in ``seq``: the specular points
         on it between the start's image in the planes before it and the target's image in the
         planes after it (the planar bounces unfold; the curved mirror's divergence is taken in
         the unfolded legs), every planar bounce point checked on its mesh and every segment for
-        blockage. Returns (target, image, coefficient, dL/dt, facet) rows as :meth:`_legs`."""
+        blockage. Returns (target, image, coefficient, dL/dt, facet) rows as :meth:`_legs`.
+        ``window_extent``: the fan of :meth:`_legs`, applied where the curved bounce is the leg's
+        first (seen straight from ``start``); after a planar bounce the search is exhaustive."""
         from acoustics.paths.specular import specular_points
         k = next(j for j, b in enumerate(seq) if b not in self.planes)
         ci, before, after = seq[k], seq[:k], seq[k + 1:]
@@ -450,10 +487,14 @@ class RayScene:
         exact = None
         if sm.moving and spec.exact_surface:
             exact = (lambda x, y, _s=sm.surface, _t=sm.time_s: _s.height(x, y, _t), sm.placement)
+        window = None
+        if window_extent is not None and not before:   # a fan: only blocks it reaches, seen from start
+            window = (np.asarray(start, float), np.eye(3) if view is None else view.rotation, window_extent)
         sp = specular_points(sm.mesh.vertices, sm.mesh.faces, self._normals(ci),
                              np.broadcast_to(s_img, (n, 3)), e_img,
                              newton_iterations=spec.newton_iterations,
-                             focusing_limit_db=spec.focusing_limit_db, height_field=exact)
+                             focusing_limit_db=spec.focusing_limit_db, height_field=exact,
+                             window=window)
         empty = (np.zeros(0, int), np.zeros((0, 3)), np.zeros(0, complex), np.zeros(0),
                  np.zeros(0, int))
         if not len(sp):
@@ -540,8 +581,26 @@ class RayScene:
             vel = None if vel is None else vel @ rot.T
             v_s = None if v_s is None else rot @ v_s
         tx_c, rx_c = self.centers(view)
-        t_tgt, t_pt, t_c, t_nb, t_rate, t_seq, t_face = self._legs(tx_c, p, order, vel, v_s)
-        r_tgt, r_pt, r_c, r_nb, r_rate, r_seq, r_face = self._legs(rx_c, p, order, vel, v_s)
+        fan = self.fan_extent_rad is not None
+        t_tgt, t_pt, t_c, t_nb, t_rate, t_seq, t_face = self._legs(tx_c, p, order, vel, v_s, view=view,
+                                                    window_extent=self.fan_extent_rad)
+        rx_targets = None
+        if fan:
+            # a receive leg's bounce pairs with every transmit leg of its target: only targets
+            # the fan lights directly, or through a bounce, send such a path above the level
+            az_lo, az_hi, el_lo, el_hi = self.fan_extent_rad
+            d = p - tx_c
+            if view is not None:
+                d = d @ view.rotation
+            r = np.maximum(np.linalg.norm(d, axis=1), 1e-9)
+            el = np.arcsin(np.clip(d[:, 1] / r, -1.0, 1.0))
+            az = np.arctan2(d[:, 0], d[:, 2])
+            lit = (el >= el_lo) & (el <= el_hi) & (az >= az_lo) & (az <= az_hi)
+            lit[t_tgt[t_nb > 0]] = True
+            rx_targets = np.flatnonzero(lit)
+        r_tgt, r_pt, r_c, r_nb, r_rate, r_seq, r_face = self._legs(rx_c, p, order, vel, v_s, view=view,
+                                                    window_extent=self.rx_fan_extent_rad,
+                                                    curved_targets=rx_targets)
         # join the legs on the target: every transmit leg with every receive leg
         o = np.argsort(r_tgt, kind="stable")
         r_tgt, r_pt, r_c, r_nb, r_rate, r_seq, r_face = (a[o] for a in (r_tgt, r_pt, r_c, r_nb, r_rate,
@@ -678,5 +737,15 @@ def build_ray_scene(scene, sonar, medium, pose=None) -> RayScene | None:
             if pl is not None:
                 planes[i] = pl
     rx = sonar.receiver.elements
+    fan = rx_fan = None
+    level = getattr(scene.effects.specular, "beam_level_db", None)
+    if level is not None:
+        kw = dict(medium=medium, frequency_hz=scene.signal.center_frequency_hz)
+        fan = (*illuminated_extent(sonar.transmitter, plane="azimuth", level_db=level, **kw),
+               *illuminated_extent(sonar.transmitter, plane="elevation", level_db=level, **kw))
+        one = rx.subset([0])
+        rx_fan = (*illuminated_extent(one, plane="azimuth", level_db=level, **kw),
+                  *illuminated_extent(one, plane="elevation", level_db=level, **kw))
     return RayScene(meshes, caster, sonar.transmitter.phase_center_m, rx.phase_center_m, planes,
-                    medium, scene.signal.center_frequency_hz, specular=scene.effects.specular)
+                    medium, scene.signal.center_frequency_hz, specular=scene.effects.specular,
+                    fan_extent_rad=fan, rx_fan_extent_rad=rx_fan)

@@ -128,13 +128,15 @@ class RayCaster:
         Embree's robust (watertight) traversal.
     """
 
-    def __init__(self, meshes, *, threads: int | None = None, robust: bool = True):
+    def __init__(self, meshes, *, threads: int | None = None, robust: bool = True,
+                 previous: "RayCaster | None" = None):
         import os
         self.meshes = list(meshes)
         if not self.meshes:
             raise ValueError("a ray caster needs at least one mesh")
-        verts, faces, owner = [], [], []
+        verts, faces, owner, normal, v0 = [], [], [], [], []
         offset = 0
+        self._per_mesh = {}
         for i, sm in enumerate(self.meshes):
             v = np.asarray(sm.mesh.vertices, float)
             f = np.asarray(sm.mesh.faces, np.int64)
@@ -142,25 +144,98 @@ class RayCaster:
             faces.append(f + offset)
             owner.append(np.full(len(f), i))
             offset += len(v)
+            # a mesh's face normals and first vertices, kept from the previous caster when the
+            # mesh is the same object (a still floor under a moving sea)
+            kept = None if previous is None else previous._per_mesh.get(id(sm))
+            if kept is None or kept[0] is not sm:
+                tri = v[f]
+                n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+                norm = np.linalg.norm(n, axis=1)
+                kept = (sm, n / np.where(norm > 0, norm, 1.0)[:, None], tri[:, 0].copy())
+            self._per_mesh[id(sm)] = kept
+            normal.append(kept[1])
+            v0.append(kept[2])
         self.vertices = np.concatenate(verts)
         self.faces = np.concatenate(faces)
         self.face_mesh = np.concatenate(owner)
-        tri = self.vertices[self.faces]
-        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        norm = np.linalg.norm(n, axis=1)
-        self.face_normal = n / np.where(norm > 0, norm, 1.0)[:, None]
-        self.face_v0 = tri[:, 0].copy()
+        self.face_normal = np.concatenate(normal)
+        self.face_v0 = np.concatenate(v0)
         # rows n, n·v0: one cache line per hit when refining
-        self.face_plane = np.ascontiguousarray(np.column_stack(
-            [self.face_normal, np.einsum("ij,ij->i", self.face_normal, self.face_v0)]))
+        self.face_plane = np.empty((self.faces.shape[0], 4))
+        self.face_plane[:, :3] = self.face_normal
+        self.face_plane[:, 3] = np.einsum("ij,ij->i", self.face_normal, self.face_v0)
         self.extent_m = float(np.max(np.abs(self.vertices))) if len(self.vertices) else 1.0
         self.eps_m = max(64 * np.spacing(np.float32(max(self.extent_m, 1.0))).item(), 1e-7)
         self.threads = threads or os.cpu_count() or 1
-        self._scene = rtcore_scene.EmbreeScene(robust=robust)
-        TriangleMesh(scene=self._scene, vertices=self.vertices.astype(np.float32),
-                     indices=self.faces.astype(np.int32))
+        # one Embree scene for the meshes that never move, one for those that do (a sea): a
+        # caster rebuilt for a new sea (``previous``) keeps the still meshes' scene and its BVH
+        moving = np.array([bool(getattr(sm, "moving", False)) for sm in self.meshes])
+        self._parts = []
+        for flag in (False, True):
+            idx = np.flatnonzero(moving == flag)
+            if idx.size == 0:
+                continue
+            reused = None
+            if previous is not None and not flag:
+                reused = previous._still_part(self.meshes, idx)
+            self._parts.append(reused if reused is not None else
+                               self._build_part(idx, robust, still=not flag))
         self.rays_cast: dict[str, int] = {}
         self._buffers = None
+
+    def _build_part(self, mesh_idx, robust, still):
+        """(Embree scene, global face index of each of its faces, its meshes, still) for the
+        meshes ``mesh_idx``."""
+        faces = np.flatnonzero(np.isin(self.face_mesh, mesh_idx))
+        verts, local, offset = [], [], 0
+        for i in mesh_idx:      # each mesh's own vertices, its faces offset within the part
+            m = self.meshes[i].mesh
+            verts.append(np.asarray(m.vertices, np.float32))
+            local.append(np.asarray(m.faces, np.int64) + offset)
+            offset += len(m.vertices)
+        scene = rtcore_scene.EmbreeScene(robust=robust)
+        TriangleMesh(scene=scene, vertices=np.concatenate(verts),
+                     indices=np.concatenate(local).astype(np.int32))
+        return scene, faces.astype(np.int32), [self.meshes[i] for i in mesh_idx], still
+
+    def _still_part(self, meshes, mesh_idx):
+        """This caster's scene of still meshes, if ``meshes[mesh_idx]`` are the same objects at
+        the same face offsets (so its face indices hold in the new caster), else None."""
+        for scene, faces, owned, still in self._parts:
+            if not still or len(owned) != len(mesh_idx):
+                continue
+            if all(a is meshes[i] for a, i in zip(owned, mesh_idx)):
+                mine = np.flatnonzero(np.isin(self.face_mesh, [self.meshes.index(a) for a in owned]))
+                if np.array_equal(mine, faces) and self.faces.shape[0] > 0:
+                    return scene, faces, owned, still
+        return None
+
+    def _ids(self, o32, d32, dists, query):
+        """Embree's answer over every part: the global face hit (INTERSECT; the nearest over
+        the parts, by Embree's float32 distance) or 0 where blocked (OCCLUDED, as Embree)."""
+        if len(self._parts) == 1:
+            scene, faces, _, _ = self._parts[0]
+            if query == "OCCLUDED":
+                return np.asarray(scene.run(o32, d32, dists=dists, query=query))
+            ids = np.asarray(scene.run(o32, d32, dists=dists, query=query))
+            return np.where(ids >= 0, faces[np.maximum(ids, 0)], -1).astype(np.int32)
+        if query == "OCCLUDED":
+            free = np.ones(o32.shape[0], bool)
+            for scene, _, _, _ in self._parts:
+                free &= np.asarray(scene.run(o32, d32, dists=dists, query=query)) != 0
+            return np.where(free, -1, 0).astype(np.int32)
+        best = np.full(o32.shape[0], -1, np.int32)
+        best_t = np.full(o32.shape[0], np.inf, np.float32)
+        for scene, faces, _, _ in self._parts:
+            res = scene.run(o32, d32, dists=dists, query=query, output=1)
+            ids = np.asarray(res["geomID"]) if isinstance(res, dict) else None
+            prim = np.asarray(res["primID"])
+            t = np.asarray(res["tfar"], np.float32)
+            hit = (ids >= 0) & (prim >= 0)
+            nearer = hit & (t < best_t)
+            best[nearer] = faces[prim[nearer]]
+            best_t[nearer] = t[nearer]
+        return best
 
     # ------------------------------------------------------------------ queries
     def _run(self, o32, d32, dists, query):
@@ -169,13 +244,12 @@ class RayCaster:
             return np.zeros(0, np.int32)
         chunks = min(self.threads, max(1, n // _MIN_CHUNK))
         if chunks <= 1:
-            return self._scene.run(o32, d32, dists=dists, query=query)
+            return self._ids(o32, d32, dists, query)
         bounds = np.linspace(0, n, chunks + 1).astype(int)
         parts = [slice(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
         def job(s):
-            return self._scene.run(o32[s], d32[s], dists=None if dists is None else dists[s],
-                                   query=query)
+            return self._ids(o32[s], d32[s], None if dists is None else dists[s], query)
 
         with ThreadPoolExecutor(chunks) as pool:
             return np.concatenate(list(pool.map(job, parts)))
@@ -235,7 +309,7 @@ class RayCaster:
                 # Embree stops at the limit less the start offset; float64 has the last word
                 dists = np.ascontiguousarray(np.maximum(limit[s] - eps, 0.0) * (1 + 1e-6) + self.eps_m,
                                              np.float32)
-            ids = np.asarray(self._scene.run(o32[s], d32[s], dists=dists, query="INTERSECT"))
+            ids = self._ids(o32[s], d32[s], dists, "INTERSECT")
             lim = limit[s] + self.eps_m if limit.shape[0] > 1 else limit + self.eps_m
             _refine(ids.astype(np.int32, copy=False), o[s], d[s], self.face_plane,
                     self.face_mesh, lim, face[s], mesh[s], t[s], point[s])

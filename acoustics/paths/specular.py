@@ -209,49 +209,112 @@ def _candidates(V, F, N, S, P, tol, cap, out_pair, out_face, out_st):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _candidates_blocked(V, F, N, S, P, tol, order, starts, centre, radius, axis, spread, margin,
-                        cap, out_pair, out_face, out_st):
+def _source_terms(S, centre, radius, active):
+    """Per active block, what the source alone contributes to the block test: the unit vector
+    from the source to the block's centre, the most it turns over the block, and whether the
+    source is near (rows: ux, uy, uz, turn, near)."""
+    out = np.empty((active.shape[0], 5))
+    for i in range(active.shape[0]):
+        blk = active[i]
+        rho = radius[blk]
+        dx, dy, dz = centre[blk, 0] - S[0], centre[blk, 1] - S[1], centre[blk, 2] - S[2]
+        r = np.sqrt(dx * dx + dy * dy + dz * dz)
+        inv = 1.0 / max(r, 1e-300)
+        out[i, 0] = dx * inv
+        out[i, 1] = dy * inv
+        out[i, 2] = dz * inv
+        out[i, 3] = 2.0 * rho / max(r - rho, 1e-300)
+        out[i, 4] = 1.0 if r <= 2.0 * rho else 0.0
+    return out
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _block_mask(src, P, centre, radius, axis, cos_a, sin_a, wide, margin_ok, active, mask):
+    """mask[i] = 1 where the reflection law may hold in block active[i] for the pair (S, P)
+    (``src``: :func:`_source_terms` of S): the test of :func:`_candidates_blocked` without
+    branches, so that it vectorises — the angle test ang > a + asin(x) (a = cone + margin,
+    x = turn / |b|) as cos(ang) < cos a √(1−x²) − sin a · x, valid while a + asin(x) < π
+    (``wide`` blocks, a ≥ π/2, may exceed it)."""
+    for i in range(active.shape[0]):
+        blk = active[i]
+        rho = radius[blk]
+        ex, ey, ez = centre[blk, 0] - P[0], centre[blk, 1] - P[1], centre[blk, 2] - P[2]
+        r_p = np.sqrt(ex * ex + ey * ey + ez * ez)
+        near = (src[i, 4] > 0.0) | (r_p <= 2.0 * rho)
+        # far enough from both ends here (near ones pass whatever these give)
+        i_p = 1.0 / max(r_p, 1e-300)
+        bx = src[i, 0] + ex * i_p
+        by = src[i, 1] + ey * i_p
+        bz = src[i, 2] + ez * i_p
+        turn = src[i, 3] + 2.0 * rho / max(r_p - rho, 1e-300)
+        m = np.sqrt(bx * bx + by * by + bz * bz)
+        x = min(1.0, turn / max(m, 1e-300))
+        cosang = abs(bx * axis[blk, 0] + by * axis[blk, 1] + bz * axis[blk, 2]) / max(m, 1e-300)
+        limit = cos_a[blk] * np.sqrt(1.0 - x * x) - sin_a[blk] * x
+        skip = (~near) & (m > turn) & (cosang < limit) & margin_ok[blk] & ~(wide[blk] & (x >= sin_a[blk]))
+        mask[i] = 0 if skip else 1
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _candidates_blocked(V, F, N, S, P, tol, order, starts, centre, radius, axis, spread, bvert,
+                        bvstart, local, allowed, margin, cap, out_pair, out_face, out_st):
     """:func:`_candidates` over blocks of spatially close facets, skipping a block where the
     reflection law cannot hold: the angle between the legs' bisector at its centre and the
     block's normal cone exceeds the cone's half-angle, plus the most the bisector can turn
-    within the block's bounding sphere, plus ``margin`` (rad)."""
+    within the block's bounding sphere, plus ``margin`` (rad); and the blocks not
+    ``allowed``. In a block that may hold a bounce point each vertex's residual is evaluated
+    once (``bvert``: the blocks' vertices, ``local``: each facet's three, indexed into its
+    block's), as :func:`_candidates` does. The sources' terms are computed once for a run of
+    pairs that share their source (the usual case: a phase centre and many targets)."""
     k = 0
+    n_b = starts.shape[0] - 1
+    n_act = 0
+    for blk in range(n_b):
+        if allowed[blk]:
+            n_act += 1
+    active = np.empty(n_act, np.int64)
+    n_act = 0
+    for blk in range(n_b):
+        if allowed[blk]:
+            active[n_act] = blk
+            n_act += 1
+    a = np.empty(n_b)
+    for blk in range(n_b):
+        a[blk] = spread[blk] + margin
+    cos_a = np.cos(a)
+    sin_a = np.sin(a)
+    wide = a >= 0.5 * np.pi
+    margin_ok = a < np.pi          # a cone of half-angle π or more holds every direction
+    mask = np.empty(n_act, np.uint8)
+    most = 0
+    for blk in range(n_b):
+        most = max(most, bvstart[blk + 1] - bvstart[blk])
+    tang = np.empty((most, 3))
+    src = np.empty((0, 5))
     for j in range(S.shape[0]):
-        for blk in range(starts.shape[0] - 1):
-            rho = radius[blk]
-            bx = by = bz = 0.0
-            turn = 0.0
-            near = False
-            for w in range(2):
-                Q = S[j] if w == 0 else P[j]
-                dx, dy, dz = centre[blk, 0] - Q[0], centre[blk, 1] - Q[1], centre[blk, 2] - Q[2]
-                r = np.sqrt(dx * dx + dy * dy + dz * dz)
-                if r <= 2.0 * rho:
-                    near = True
-                    break
-                bx += dx / r
-                by += dy / r
-                bz += dz / r
-                turn += 2.0 * rho / (r - rho)      # ≥ |Δê| over the sphere (chord ≤ 2 sin)
-            if not near:
-                m = np.sqrt(bx * bx + by * by + bz * bz)
-                if m > turn:
-                    cosang = abs(bx * axis[blk, 0] + by * axis[blk, 1] + bz * axis[blk, 2]) / m
-                    ang = np.arccos(min(1.0, cosang))
-                    if ang > spread[blk] + np.arcsin(min(1.0, turn / m)) + margin:
-                        continue
+        if j == 0 or S[j, 0] != S[j - 1, 0] or S[j, 1] != S[j - 1, 1] or S[j, 2] != S[j - 1, 2]:
+            src = _source_terms(S[j], centre, radius, active)
+        _block_mask(src, P[j], centre, radius, axis, cos_a, sin_a, wide, margin_ok, active, mask)
+        for ia in range(n_act):
+            if mask[ia] == 0:
+                continue
+            blk = active[ia]
+            v0 = bvstart[blk]
+            for u in range(bvstart[blk + 1] - v0):
+                tang[u, 0], tang[u, 1], tang[u, 2] = _residual(V, N, S[j], P[j], bvert[v0 + u])
             for i in range(starts[blk], starts[blk + 1]):
                 f = order[i]
-                a, b, c = F[f, 0], F[f, 1], F[f, 2]
-                ok, s, t = _facet_zero(V, a, b, c, _residual(V, N, S[j], P[j], a),
-                                       _residual(V, N, S[j], P[j], b),
-                                       _residual(V, N, S[j], P[j], c), tol)
+                la, lb, lc = local[i, 0], local[i, 1], local[i, 2]
+                ok, s, t = _facet_zero(V, F[f, 0], F[f, 1], F[f, 2],
+                                       (tang[la, 0], tang[la, 1], tang[la, 2]),
+                                       (tang[lb, 0], tang[lb, 1], tang[lb, 2]),
+                                       (tang[lc, 0], tang[lc, 1], tang[lc, 2]), tol)
                 if ok:
                     k = _keep(k, cap, j, f, s, t, out_pair, out_face, out_st)
     return k
 
 
-def _blocks(V, F, N, size: int = 32):
+def _blocks(V, F, N, size: int = 16):
     """Facets in Morton (Z-curve) order of their centroids, cut into blocks of ``size``; each
     block's bounding sphere and its vertex normals' cone (axis, half-angle)."""
     cen = V[F].mean(axis=1)
@@ -276,7 +339,36 @@ def _blocks(V, F, N, size: int = 32):
     axis = np.where(na[:, None] > 0, a / np.where(na > 0, na, 1.0)[:, None], [0.0, 0.0, 1.0])
     cosv = np.clip(np.einsum("ij,ij->i", nrm, axis[owner]), -1.0, 1.0)
     spread = np.where(na > 0, np.arccos(np.minimum.reduceat(cosv, at)), np.pi)
-    return order.astype(np.int64), starts, centre, radius, axis, spread
+    # each block's distinct vertices, and each facet's three as indices into its block's list
+    key = owner.astype(np.int64) * len(V) + fv
+    srt = np.sort(key)        # a sort, not numpy's hashed unique: several times faster here
+    uniq = srt[np.concatenate([[True], srt[1:] != srt[:-1]])]
+    bvert = (uniq % len(V)).astype(np.int64)
+    bvstart = np.searchsorted(uniq, np.arange(at.size + 1, dtype=np.int64) * len(V)).astype(np.int64)
+    local = (np.searchsorted(uniq, key) - bvstart[owner]).reshape(-1, 3).astype(np.int64)
+    return (order.astype(np.int64), starts, centre, radius, axis, spread, bvert, bvstart,
+            np.ascontiguousarray(local))
+
+
+#: the blocks of the last few meshes searched, keyed by where their arrays live, their shapes
+#: and a sample of their values (the arrays are held, so that the memory stays theirs); a
+#: moving sea's mesh is new every ping and simply misses
+_BLOCK_CACHE: list = []
+
+
+def _blocks_of(V, F, N, normals):
+    """:func:`_blocks`, cached (``normals``: the caller's array, before it was normalised)."""
+    key = tuple((a.__array_interface__["data"][0], a.shape, float(a.reshape(-1)[::211].sum()))
+                for a in (V, F, normals))
+    for i, entry in enumerate(_BLOCK_CACHE):
+        if entry[0] == key:
+            # most recently used first: a still floor is not pushed out by each ping's new sea
+            _BLOCK_CACHE.insert(0, _BLOCK_CACHE.pop(i))
+            return entry[2]
+    blocks = _blocks(V, F, N)
+    _BLOCK_CACHE.insert(0, (key, (V, F, normals), blocks))
+    del _BLOCK_CACHE[4:]
+    return blocks
 
 
 def _unit(x):
@@ -360,10 +452,54 @@ def _inside_xy(tri_xy, xy, eps):
     return (s >= -eps) & (t >= -eps) & (s + t <= 1 + eps), np.column_stack([s, t])
 
 
+def _search_split(V, F, N, S, P, tol, blocks, cap, allowed):
+    """The blocked search with the pairs split across two threads (the kernel releases the
+    GIL); the parts join in pair order, so the rows do not depend on the split."""
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    def run(lo, hi):
+        c = max(256, cap * (hi - lo) // max(S.shape[0], 1))
+        while True:
+            pair = np.empty(c, np.int64)
+            face = np.empty(c, np.int64)
+            st = np.empty((c, 2))
+            k = _candidates_blocked(V, F, N, S[lo:hi], P[lo:hi], tol, *blocks, allowed, 0.1, c,
+                                    pair, face, st)
+            if k <= c:
+                return pair[:k] + lo, face[:k], st[:k]
+            c = k
+
+    n = S.shape[0]
+    parts = min(2, os.cpu_count() or 1) if n >= 64 else 1
+    cuts = np.linspace(0, n, parts + 1).astype(int)
+    if parts == 1:
+        return run(0, n)
+    with ThreadPoolExecutor(parts) as pool:
+        out = list(pool.map(lambda i: run(cuts[i], cuts[i + 1]), range(parts)))
+    return tuple(np.concatenate(col) for col in zip(*out))
+
+
+def _window_blocks(blocks, window):
+    """1 for the blocks whose bounding sphere, seen from the window's origin, reaches into its
+    angular window (az = atan2(x, z), el = asin(y/r) in the window's axes), else 0."""
+    origin, rotation, (az_lo, az_hi, el_lo, el_hi) = window
+    centre, radius = blocks[2], blocks[3]
+    c = (centre - np.asarray(origin, float)) @ np.asarray(rotation, float)
+    r = np.linalg.norm(c, axis=1)
+    pad = np.arcsin(np.clip(radius / np.maximum(r, 1e-300), 0.0, 1.0))
+    pad = np.where(r > radius, pad, np.pi)          # the origin inside the sphere: keep
+    el = np.arcsin(np.clip(c[:, 1] / np.maximum(r, 1e-300), -1.0, 1.0))
+    az = np.arctan2(c[:, 0], c[:, 2])
+    inside = ((el >= el_lo - pad) & (el <= el_hi + pad) & (az >= az_lo - pad)
+              & (az <= az_hi + pad))
+    return inside.astype(np.uint8)
+
+
 def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenumber=None,
                     newton_iterations: int = 8, focusing_limit_db: float = 20.0,
                     search_tolerance: float = 0.1, height_field=None,
-                    cull: bool = True) -> SpecularPoints:
+                    cull: bool = True, window=None) -> SpecularPoints:
     """Every one-bounce specular path off a mesh for each source–receiver pair.
 
     Parameters
@@ -385,9 +521,13 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
     search_tolerance : float
         Facets are searched this fraction beyond their edges (points found twice are merged).
     cull : bool
-        Skip blocks of 32 neighbouring facets whose normals cannot meet the legs' bisector
+        Skip blocks of 16 neighbouring facets whose normals cannot meet the legs' bisector
         (a conservative bound with a 0.1 rad margin); False tests every facet (the reference
         the tests compare with).
+    window : (ndarray (3,), ndarray (3, 3), (az_lo, az_hi, el_lo, el_hi)), optional
+        Search only blocks of facets that reach into this angular window (rad) seen from its
+        origin (m), directions in the axes of the rotation's columns (a transmitter's fan:
+        ``effects.specular.beam_level_db``); needs ``cull``. None: everywhere.
     height_field : (callable, ndarray (4, 4)), optional
         The exact surface the mesh samples, as ``z, z_x, z_y, z_xx, z_xy, z_yy = f(x, y)`` in
         its own frame, and the rigid placement of that frame in the mesh's. Bounce points are
@@ -411,20 +551,22 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
     if not (np.all(np.isfinite(S)) and np.all(np.isfinite(P))):
         raise ValueError("specular_points: sources and receivers must be finite")
     cap = max(256, 32 * S.shape[0])      # a wavy sea: a few glints per pair
-    blocks = _blocks(V, F, N) if cull else None
-    while True:
-        pair = np.empty(cap, np.int64)
-        face = np.empty(cap, np.int64)
-        st = np.empty((cap, 2))
-        if blocks is None:
+    blocks = _blocks_of(V, F, N, np.asarray(normals, float)) if cull else None
+    if blocks is None:
+        while True:
+            pair = np.empty(cap, np.int64)
+            face = np.empty(cap, np.int64)
+            st = np.empty((cap, 2))
             k = _candidates(V, F, N, S, P, search_tolerance, cap, pair, face, st)
-        else:
-            k = _candidates_blocked(V, F, N, S, P, search_tolerance, *blocks, 0.1, cap, pair,
-                                    face, st)
-        if k <= cap:
-            break
-        cap = k
-    pair, face, st = pair[:k], face[:k], st[:k]
+            if k <= cap:
+                break
+            cap = k
+        pair, face, st = pair[:k], face[:k], st[:k]
+    else:
+        allowed = np.ones(blocks[1].size - 1, np.uint8)
+        if window is not None:
+            allowed = _window_blocks(blocks, window)
+        pair, face, st = _search_split(V, F, N, S, P, search_tolerance, blocks, cap, allowed)
     Sq, Pq = S[pair], P[pair]
     rot = None
     if height_field is not None:

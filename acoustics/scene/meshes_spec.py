@@ -375,3 +375,9 @@ class SpecularSpec(ConfigModel):
     focusing_limit_db: Real = Field(20.0, ge=0.0, le=60.0)
     """Largest gain of a curved mirror over a flat one (dB): geometrical optics diverges at a
     caustic; paths held at the limit are counted in the run record."""
+    beam_level_db: Real | None = Field(None, lt=0, ge=-60)
+    """Search only where the transmitter's principal cuts are above this level (dB re peak,
+    sidelobes included, as the reverberation fan): transmit legs bounce only on facets inside
+    that fan, and receive legs are searched only for targets inside it or with a transmit leg
+    that bounces (every other path leaves the transmitter below the level). null: every facet
+    for every target (the reference). An accuracy knob (docs/accuracy.md, "Specular fan")."""

@@ -200,8 +200,16 @@ class EffectsSpec(ConfigModel):
     Doppler shift 2 v_r f0 / c (a multipath path: −f0/c times the rate its length changes, a
     moving sea's included): with the LFM pulse's range–Doppler coupling a closing speed of
     0.5 m/s biases the range by 7 cm, 2 m/s by 29 cm (docs/accuracy.md, "within-ping motion")."""
+    doppler_method: Literal["bank", "bins"] = "bank"
+    """How the fast synthesis shifts echoes: ``bank``, a few replicas at Chebyshev nodes of the
+    ping's shifts, interpolated in frequency after the LFM's range–Doppler coupling is taken
+    out (each echo spread once); ``bins``, a grid of ``doppler_bin_hz`` (docs/accuracy.md)."""
+    doppler_error_db: Bounded(-120.0, -10.0) = -50.0
+    """``bank``: the fewest nodes whose worst error over the ping's shifts (re the pulse) is
+    below this, an accuracy knob (docs/accuracy.md, "Doppler bank")."""
     doppler_bin_hz: Bounded(0.01, 1000.0, positive=True) = 5.0
-    """Doppler grid of the fast synthesis (Hz), an accuracy knob (docs/accuracy.md)."""
+    """Doppler grid of the fast synthesis (Hz) with ``doppler_method: bins``, an accuracy knob
+    (docs/accuracy.md)."""
     stop_and_hop: bool = True
     """A moving platform hears each echo from the pose it had when it transmitted (the
     stop-and-hop approximation). false: the receive leg starts from the pose at the echo's

@@ -141,7 +141,8 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
                            method=fx.synthesis, kernel_length=fx.kernel_length,
                            oversampling=fx.oversampling,
                            receive_positions_m=vs.p_rx if bistatic else None,
-                           doppler_hz=doppler, doppler_bin_hz=fx.doppler_bin_hz)
+                           doppler_hz=doppler, doppler_bin_hz=fx.doppler_bin_hz,
+                           doppler_method=fx.doppler_method, doppler_error_db=fx.doppler_error_db)
     else:
         x = np.zeros((n_ch, s.samples), complex)
     targets = _with_shadow(targets, shadowed)

@@ -29,9 +29,12 @@ from scipy.special import i0
 from acoustics.synthesis.arrivals import EchoModel, arrivals, spread_arrivals
 from acoustics.sonar.pulse import Pulse
 
-__all__ = ["METHODS", "fractional_delay_table", "synthesize"]
+__all__ = ["METHODS", "DOPPLER_METHODS", "fractional_delay_table", "synthesize"]
 
 METHODS = ("fast", "exact")
+#: how the fast synthesis shifts Doppler echoes: a bank of a few replicas interpolated in
+#: frequency (acoustics/synthesis/doppler_bank.py), or the older grid of shifted replicas
+DOPPLER_METHODS = ("bank", "bins")
 _TABLE_PHASES = 2048  # linear interpolation between phases: error < 1e-7 of the peak
 #: a Doppler grid frequency costs about as much as this many echoes synthesised exactly (a
 #: forward FFT of 16 channels vs 16 x 320 envelope samples each; measured in
@@ -85,7 +88,8 @@ def fractional_delay_table(taps: int, transition: float, phases: int = _TABLE_PH
 def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz: float,
                n_samples: int, t0_s: float = 0.0, method: str = "fast", kernel_length: int = 8,
                oversampling: int = 2, receive_positions_m=None, doppler_hz=None,
-               doppler_bin_hz: float = 5.0):
+               doppler_bin_hz: float = 5.0, doppler_method: str = "bank",
+               doppler_error_db: float = -50.0):
     """Complex baseband samples of every receiver element for a set of point scatterers.
 
     Parameters
@@ -120,7 +124,15 @@ def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz
         each split linearly between its two neighbours; the phase error over a pulse of length T
         is at most (π Δf T)²/2 (docs/accuracy.md, "within-ping motion"). When the shifted
         scatterers are fewer than about 3 per occupied grid frequency they are synthesised
-        exactly instead (cheaper, and the reference).
+        exactly instead (cheaper, and the reference). ``doppler_method="bins"`` only.
+    doppler_method : {"bank", "bins"}
+        ``fast`` only: ``bank`` (default) spreads each shifted scatterer once, onto a few trains
+        convolved with replicas at Chebyshev nodes of the ping's shifts, the LFM's
+        range–Doppler coupling taken out first (acoustics/synthesis/doppler_bank.py); ``bins``
+        the grid of ``doppler_bin_hz``.
+    doppler_error_db : float
+        ``bank`` only: the bank takes the fewest nodes whose worst error over the ping's shifts
+        (re the pulse, L2) is below this (docs/accuracy.md, "Doppler bank").
 
     Returns
     -------
@@ -150,6 +162,11 @@ def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz
         raise ValueError(f"oversampling must be >= 1, got {oversampling}")
     if fd is None:
         return _fast(model, p, q, pulse, rate_hz, n_samples, t0_s, kernel_length, int(oversampling), prx)
+    if doppler_method not in DOPPLER_METHODS:
+        raise ValueError(f"doppler_method must be one of {DOPPLER_METHODS}, got {doppler_method!r}")
+    if doppler_method == "bank":
+        return _fast_bank(model, p, q, pulse, rate_hz, n_samples, t0_s, kernel_length,
+                          int(oversampling), prx, fd, float(doppler_error_db))
     if not doppler_bin_hz > 0:
         raise ValueError(f"doppler_bin_hz must be > 0, got {doppler_bin_hz}")
     # Doppler bins: each shifted scatterer split linearly between the two replicas shifted by
@@ -177,6 +194,25 @@ def synthesize(model: EchoModel, positions_m, strength, *, pulse: Pulse, rate_hz
             groups.append((float(b) * doppler_bin_hz, moving[k], w[k]))
     return _fast(model, p, q, pulse, rate_hz, n_samples, t0_s, kernel_length, int(oversampling),
                  prx, groups=groups)
+
+
+def _fast_bank(model, p, q, pulse, fs, n, t0, taps, up, prx, fd, error_db):
+    """Still scatterers through the plain replica, shifted ones through the bank, under one
+    inverse FFT (acoustics/synthesis/doppler_bank.py)."""
+    from acoustics.synthesis.doppler_bank import bank_nodes, synthesize_bank
+    moving = np.flatnonzero(fd != 0)
+    n_nodes = bank_nodes(pulse, fs * up, fd[moving], error_db).size
+    if moving.size < _EXACT_PER_BIN * n_nodes:
+        # a few shifted echoes: each exactly is cheaper (and the reference)
+        still = np.flatnonzero(fd == 0)
+        part = _exact(model, p[moving], q[moving], pulse, fs, n, t0,
+                      None if prx is None else prx[moving], fd[moving])
+        if not still.size:
+            return part
+        return part + _fast(model, p, q, pulse, fs, n, t0, taps, up, prx,
+                            groups=[(0.0, still, np.ones(still.size))])
+    return synthesize_bank(model, p, q, fd, pulse, fs, n, t0, taps, up, prx, error_db,
+                           fractional_delay_table, _even_fast_len, _every_up_th)
 
 
 def _exact(model, p, q, pulse, fs, n, t0, prx=None, fd=None):

@@ -449,7 +449,8 @@ def _describe(images, record, img, mags, ping, row, beam, volume, pose):
 
 
 def score_all(table: dict, truth: dict | None, volume: CountingVolume, n_pings: int, *,
-              dr: float, dtheta: float, gate: float, unresolved: float = 1.5) -> dict:
+              dr: float, dtheta: float, gate: float, unresolved: float = 1.5,
+              sidelobe=None) -> dict:
     """Per-ping counts, density and (with truth) scores.
 
     Parameters
@@ -458,6 +459,9 @@ def score_all(table: dict, truth: dict | None, volume: CountingVolume, n_pings: 
         Detections table.
     truth : dict or None
         ``ping`` (index in file) and ``position_m`` (n, 3, sonar frame) of every true target.
+    sidelobe : array_like of bool, shape (n_detections,), optional
+        Detections taken for a stronger one's sidelobe (:func:`processing.detection.sidelobes.psf_sidelobes`):
+        neither counted nor scored. Default: none.
 
     Returns
     -------
@@ -467,6 +471,9 @@ def score_all(table: dict, truth: dict | None, volume: CountingVolume, n_pings: 
         before and after, shared_cell_misses.
     """
     ping = table["ping"]
+    if sidelobe is not None:
+        counted = ~np.asarray(sidelobe, bool)
+        table = {**table, "in_span": table["in_span"] & counted, "in_volume": table["in_volume"] & counted}
     out = {"count_before": np.bincount(ping[table["in_span"]], minlength=n_pings),
            "count_after": np.bincount(ping[table["in_volume"]], minlength=n_pings)}
     out["density_per_m3"] = out["count_after"] / volume.volume_m3

@@ -85,6 +85,7 @@ class Track:
     confirmed: bool = False
     hits: int = 0
     misses: int = 0
+    shadowed: int = 0
     smoothed: list = field(default_factory=list)
     R: list = field(default_factory=list)
 
@@ -192,7 +193,7 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
                      accel_sd_m_s2: float = 0.5, initial_speed_sd_m_s: float = 1.0, alpha: float = 0.5,
                      beta: float = 0.2, confirm_hits: int = 3, confirm_window: int = 4,
                      max_misses: int = 2, resolution_m2=None, resolution_cells: float = 1.0,
-                     motion=None, management=None):
+                     confirm_resolved: bool = False, motion=None, management=None):
     """Tracks of detections across pings.
 
     Parameters
@@ -226,6 +227,13 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
         own track only once they part.
     resolution_cells : float
         c above; 0 turns the resolution gate off.
+    confirm_resolved : bool
+        With the resolution gate: a tentative track's hit counts towards its confirmation only
+        when its detection lies outside the resolution gate of every senior track (confirmed, or
+        holding more hits, or as many and born first) that took a detection at the same ping —
+        the resolution gate's rule for births applied through the confirmation window, where
+        two peaks of one echo, or one fish's echo merged with its neighbour's, would otherwise
+        confirm two tracks born together (at the first pings, before any track is confirmed).
     motion : object, optional
         A motion part (``predict``, ``innovation_covariance``, ``update``, ``update_mixture``,
         ``smooth``; :mod:`processing.tracking.motion`) used instead of ``method``.
@@ -285,6 +293,7 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
         used = set(a_det.tolist())
         blocked = set()
         loose = {}
+        shadow = set()
         if cell is not None and live and rows.size:
             # the resolution gate: a second, looser pass over what the first left, and no
             # births within a cell of a live track
@@ -301,6 +310,15 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
                     used.add(k)
             firm = np.array([tr.confirmed for tr in live], bool)
             blocked = set(np.flatnonzero(np.isfinite(cost2[firm]).any(axis=0)).tolist()) - used
+            if confirm_resolved:
+                def senior(l, i):
+                    a_, b_ = live[l], live[i]
+                    return a_.confirmed or a_.hits > b_.hits or (a_.hits == b_.hits and a_.track_id < b_.track_id)
+                for i, k in assigned.items():
+                    if live[i].confirmed:
+                        continue
+                    if any(np.isfinite(cost2[l, k]) for l in assigned if l != i and senior(l, i)):
+                        shadow.add(i)
         weights = jpda_weights(cost) if association == "jpda" and cost.size else None
         # 3. update
         for i, (tr, (xp, Pp, dt)) in enumerate(zip(live, pred)):
@@ -323,6 +341,7 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
                 tr.R.append(cov[j] + cell[j] if i in loose else cov[j])
                 tr.detection.append(int(j))
                 tr.hits += 1
+                tr.shadowed += i in shadow
                 tr.misses = 0
             else:
                 tr.x.append(x if shared else xp)
@@ -330,12 +349,12 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
                 tr.detection.append(-1)
                 tr.R.append(None)
                 tr.misses += 1
-            if not tr.confirmed and management.confirmed(tr.hits, len(tr.pings)):
+            if not tr.confirmed and management.confirmed(tr.hits - tr.shadowed, len(tr.pings)):
                 tr.confirmed = True
         # 4. births, deaths
         still = []
         for tr in live:
-            hopeless = not tr.confirmed and management.hopeless(tr.hits, len(tr.pings))
+            hopeless = not tr.confirmed and management.hopeless(tr.hits - tr.shadowed, len(tr.pings))
             if management.ended(tr.misses) or hopeless:
                 if tr.confirmed:
                     done.append(tr)

@@ -151,6 +151,7 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     tracks = track_detections(rows[keep], times, world[keep], cov[keep], method=ts_.method,
                               association=ts_.association, resolution_m2=cell[keep],
                               resolution_cells=ts_.resolution_cells,
+                              confirm_resolved=ts_.confirm_resolved,
                               gate_probability=ts_.gate_probability, accel_sd_m_s2=ts_.accel_sd_m_s2,
                               initial_speed_sd_m_s=ts_.initial_speed_sd_m_s, alpha=ts_.alpha,
                               beta=ts_.beta, confirm_hits=ts_.confirm_hits,

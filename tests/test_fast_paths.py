@@ -1,0 +1,97 @@
+"""Issue 31's shortcuts in the ray stage, each against the way it replaces: the caster that keeps
+its still meshes' Embree scene when a sea moves, and the specular search limited to a fan."""
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from acoustics.paths.meshes import SceneMesh
+from acoustics.paths.raycast import RayCaster
+from acoustics.paths.specular import specular_points, vertex_normals
+
+
+def _grid(z0, size, n, amp, seed):
+    rng = np.random.default_rng(seed)
+    x = np.linspace(-size / 2, size / 2, n)
+    X, Y = np.meshgrid(x, x)
+    Z = z0 + amp * np.sin(X / 1.3 + rng.uniform(0, 6)) * np.cos(Y / 1.7 + rng.uniform(0, 6))
+    v = np.column_stack([X.ravel(), Y.ravel(), Z.ravel()])
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1))
+    a = (j * n + i).ravel()
+    f = np.concatenate([np.column_stack([a, a + 1, a + n + 1]), np.column_stack([a, a + n + 1, a + n])])
+    return trimesh.Trimesh(v, f, process=False)
+
+
+def _meshes(sea_z=-2.0, moving=True):
+    floor = SceneMesh("floor", "boundary", "floor", _grid(20.0, 30.0, 41, 0.3, 1), None, "floor")
+    sea = SceneMesh("sea", "boundary", "surface", _grid(sea_z, 30.0, 31, 0.4, 2), None, "sea",
+                    surface=object() if moving else None)
+    return [floor, sea]
+
+
+def _rays(n=4000, seed=5):
+    rng = np.random.default_rng(seed)
+    d = rng.normal(size=(n, 3))
+    return np.zeros((n, 3)), d
+
+
+def test_split_caster_hits_what_one_scene_hits():
+    # the floor in one Embree scene, the sea in another: the nearest hit over both is the hit
+    # of a single scene of both (faces, float64 distances, occlusion)
+    split = RayCaster(_meshes(moving=True))
+    whole = RayCaster(_meshes(moving=False))
+    assert len(split._parts) == 2 and len(whole._parts) == 1
+    o, d = _rays()
+    a, b = split.first_hit(o, d), whole.first_hit(o, d)
+    assert a.hit.mean() > 0.5                       # both meshes are hit, most rays hit
+    assert set(np.unique(a.mesh[a.hit])) == {0, 1}
+    np.testing.assert_array_equal(a.face, b.face)
+    np.testing.assert_array_equal(a.distance, b.distance)
+    ends = np.random.default_rng(6).uniform(-10, 10, (3000, 3)) * [1, 1, 2.5]
+    np.testing.assert_array_equal(split.occluded(np.zeros_like(ends), ends),
+                                  whole.occluded(np.zeros_like(ends), ends))
+
+
+def test_a_new_sea_keeps_the_still_meshes_scene():
+    first = RayCaster(_meshes())
+    floor = first.meshes[0]
+    sea = SceneMesh("sea", "boundary", "surface", _grid(-2.5, 30.0, 31, 0.4, 3), None, "sea",
+                    surface=object())
+    again = RayCaster([floor, sea], previous=first)
+    assert again._parts[0][0] is first._parts[0][0]      # the floor's BVH, not rebuilt
+    assert again._parts[1][0] is not first._parts[1][0]
+    o, d = _rays(seed=8)
+    fresh = RayCaster([floor, SceneMesh("sea", "boundary", "surface", sea.mesh, None, "sea")])
+    np.testing.assert_array_equal(again.first_hit(o, d).face, fresh.first_hit(o, d).face)
+
+
+def _az_el(points, origin):
+    c = points - origin
+    r = np.linalg.norm(c, axis=1)
+    return np.arctan2(c[:, 0], c[:, 2]), np.arcsin(c[:, 1] / r)
+
+
+def test_windowed_specular_search_finds_every_bounce_inside_its_window():
+    # a wavy floor below, a source above it and targets around: the window keeps exactly the
+    # bounce points of the full search that lie inside it (none of the others is invented)
+    m = _grid(0.0, 30.0, 81, 0.3, 4)
+    m.vertices[:, 2] *= -1                 # z down: the floor at +z, the source above at z = -12
+    m.vertices[:, 2] += 12.0
+    nrm = vertex_normals(m.vertices, m.faces)
+    src = np.array([0.0, 0.0, 0.0])
+    rng = np.random.default_rng(9)
+    tgt = np.column_stack([rng.uniform(-8, 8, 60), rng.uniform(-8, 8, 60), rng.uniform(3, 9, 60)])
+    S = np.broadcast_to(src, tgt.shape)
+    ext = (-0.35, 0.35, -0.12, 0.12)
+    full = specular_points(m.vertices, m.faces, nrm, S, tgt)
+    win = specular_points(m.vertices, m.faces, nrm, S, tgt, window=(src, np.eye(3), ext))
+    az, el = _az_el(full.point_m, src)
+    inside = (az > ext[0] + 0.02) & (az < ext[1] - 0.02) & (el > ext[2] + 0.02) & (el < ext[3] - 0.02)
+    assert inside.sum() >= 10 and (~inside).sum() >= 10
+    got = {(int(p), round(float(x), 6)) for p, x in zip(win.pair, win.point_m[:, 0])}
+    want = {(int(p), round(float(x), 6)) for p, x in zip(full.pair[inside], full.point_m[inside, 0])}
+    assert want <= got
+    az_w, el_w = _az_el(win.point_m, src)
+    pad = 0.2                               # a block's angular size at these ranges
+    assert np.all((az_w > ext[0] - pad) & (az_w < ext[1] + pad) & (el_w > ext[2] - pad) & (el_w < ext[3] + pad))
+    assert len(win) < len(full)
