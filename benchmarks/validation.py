@@ -142,7 +142,7 @@ def ghosts():
     i, j = np.unravel_index(np.argmax(diff), diff.shape)
     beta = 2 * math.pi / LAMBDA * 0.002 * math.sin(math.radians(1))
     rows.append(["target ⟨24 m, 3.5°, 1.0°⟩, staggered receiver (Fig. 6.2)", "weak ghost at −3.4°",
-                 f"{math.degrees(a['beam_angle_rad'][j]):+.2f}° (stagger's contribution)",
+                 f"{math.degrees(a.beam_angle_rad[j]):+.2f}° (stagger's contribution)",
                  f"{20 * np.log10(diff.max() / ref):.1f} dB (tan kδ sin φ: {20 * math.log10(math.tan(beta)):.1f} dB)"])
     return ("## Ghosts (thesis §4.5.6, §6.1.2)\n\n"
             + table(["case", "thesis", "abacus", "level re target"], rows)
@@ -280,7 +280,7 @@ def scenarios():
               "(scenes/counting_algorithm.yaml), 3.4x denser than the thesis' 0.37 m⁻³.\n\n"
               f"**Noise only** (`scenes/noise_only.yaml`, 20 pings, subarray A): Rayleigh fit "
               f"μ = {fit.mu:.3f} counts against μ = σ √gain √(π/2) = {expected:.3f} expected from "
-              f"σ = 126.68 and the filters' noise power gain {im['noise_power_gain']:.5f} "
+              f"σ = 126.68 and the filters' noise power gain {im.noise_power_gain:.5f} "
               f"({100 * (fit.mu / expected - 1):+.2f} %); KS D = {fit.ks_statistic:.4f} "
               f"(1 % critical {fit.ks_critical:.4f}). False-alarm rate per cell at the derived "
               "threshold:\n\n"
