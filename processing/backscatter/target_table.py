@@ -76,12 +76,17 @@ SINGLE_TARGET_COLUMNS = (
 def write_single_targets_csv(tree: xr.DataTree, path, settings=None) -> Path:
     """Write the single targets (one row each; columns :data:`SINGLE_TARGET_COLUMNS`, angles in
     degrees, lengths in m, TS in dB re 1 m², empty where NaN) as CSV, atomically."""
+    table = single_target_table(tree, settings)
+    return _write_rows_csv(table, SINGLE_TARGET_COLUMNS, table["single_target"].values.astype(bool), path)
+
+
+def _write_rows_csv(table: xr.Dataset, columns, keep, path) -> Path:
+    """The rows ``keep`` of ``table`` as CSV with ``columns`` ((header, variable) pairs; those
+    the table has), angles in degrees, empty where not finite; atomically."""
     import csv
 
     from processing.base.atomic import staged
-    table = single_target_table(tree, settings)
-    keep = table["single_target"].values.astype(bool)
-    cols = [(name, var) for name, var in SINGLE_TARGET_COLUMNS if var in table]
+    cols = [(name, var) for name, var in columns if var in table]
     values = {}
     for name, var in cols:
         v = table[var].values[keep]
@@ -90,15 +95,8 @@ def write_single_targets_csv(tree: xr.DataTree, path, settings=None) -> Path:
     with staged(path) as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow([name for name, _ in cols])
-        for i in range(int(keep.sum())):
-            row = []
-            for name, _ in cols:
-                x = values[name][i]
-                if np.issubdtype(np.asarray(x).dtype, np.integer):
-                    row.append(int(x))
-                else:
-                    row.append("" if not np.isfinite(x) else f"{float(x):.9g}")
-            w.writerow(row)
+        for i in range(int(np.count_nonzero(keep))):
+            w.writerow([_cell(values[name][i]) for name, _ in cols])
     return path
 
 
@@ -190,23 +188,9 @@ def write_targets_csv(table: xr.Dataset, path, *, accepted_only: bool = False) -
     degrees, lengths in m, TS in dB re 1 m², empty where not finite — NaN, or an echo spacing of
     inf for an echo alone in its beam — and ``Rejected_by`` empty for a single target),
     atomically; ``accepted_only`` keeps the single targets only."""
-    import csv
-
-    from processing.base.atomic import staged
     keep = (table["single_target"].values.astype(bool) if accepted_only
             else np.ones(table.sizes.get("target", 0), bool))
-    cols = [(name, var) for name, var in TARGET_COLUMNS if var in table]
-    values = {}
-    for name, var in cols:
-        v = table[var].values[keep]
-        values[name] = np.degrees(v) if var.endswith("_rad") else v
-    path = Path(path)
-    with staged(path) as tmp, open(tmp, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow([name for name, _ in cols])
-        for i in range(int(keep.sum())):
-            w.writerow([_cell(values[name][i]) for name, _ in cols])
-    return path
+    return _write_rows_csv(table, TARGET_COLUMNS, keep, path)
 
 
 def _cell(x):
