@@ -10,7 +10,6 @@ import pytest
 
 from .conftest import ROOT
 
-pytest.importorskip("pyvista")    # the extra `view`; the test environment has it (.[test])
 
 
 def test_view_off_screen_warns_of_nothing_and_fills_its_picture(tmp_path):

@@ -334,48 +334,13 @@ class RayScene:
 
         The bounce points themselves are kept in ``last_specular`` (views, tests).
         """
-        from acoustics.paths.specular import specular_points
-        tgt, img, coef, rate = [], [], [], []
-        spec = self.specular
-        for i in self.curved:
-            sm = self.meshes[i]
-            exact = None
-            if sm.moving and spec.exact_surface:
-                t_sea = sm.time_s
-                exact = (lambda x, y, _s=sm.surface, _t=t_sea: _s.height(x, y, _t), sm.placement)
-            window = None
-            if window_extent is not None:   # a fan: only blocks it reaches, seen from start
-                window = (start, np.eye(3) if view is None else view.rotation, window_extent)
-            sp = specular_points(sm.mesh.vertices, sm.mesh.faces, self._normals(i),
-                                 np.broadcast_to(start, ends.shape), ends,
-                                 newton_iterations=spec.newton_iterations,
-                                 focusing_limit_db=spec.focusing_limit_db, height_field=exact,
-                                 window=window)
-            if not len(sp):
-                continue
-            if sp.capped.any():
-                # recorded with the run's ray counts (Provenance rays_cast_json)
-                self.specular_capped += int(sp.capped.sum())
-                self.caster._count("specular_capped_paths", int(sp.capped.sum()))
-            # nothing on the way in or out: both legs end a little off the surface on the water
-            # side (the mesh lies within the smooth surface's sag of the bounce point, on either
-            # side, so the lift is twice that distance)
-            lift = (2.0 * np.linalg.norm(sp.point_m - sp.mesh_point_m, axis=1)
-                    + 10 * self.caster.eps_m + 1e-5 * sp.source_range_m)
-            wet = sp.point_m + lift[:, None] * sp.normal
-            ok = ~self.caster.occluded(np.broadcast_to(start, wet.shape), wet, purpose="multipath")
-            ok &= ~self.caster.occluded(wet, ends[sp.pair], purpose="multipath")
-            if not ok.any():
-                continue
-            sel = np.flatnonzero(ok)
-            tgt.append(sp.pair[sel])
-            img.append(sp.image_m[sel])
-            coef.append(self._reflection(i, sp.cos_incidence[sel]) * sp.divergence[sel])
-            rate.append(self._specular_rate(sm, start, ends, sp, sel, velocities, start_velocity))
-            self.last_specular.append((i, start, sp, ok))
-        if not tgt:
+        # one bounce off each curved boundary: the bounce sequences of one curved mesh
+        rows = [self._curved_leg(start, ends, (i,), velocities, start_velocity,
+                                 window_extent=window_extent, view=view) for i in self.curved]
+        rows = [r for r in rows if r[0].size]
+        if not rows:
             return np.zeros(0, int), np.zeros((0, 3)), np.zeros(0, complex), np.zeros(0)
-        return np.concatenate(tgt), np.concatenate(img), np.concatenate(coef), np.concatenate(rate)
+        return tuple(np.concatenate(col) for col in list(zip(*rows))[:4])
 
     @staticmethod
     def _specular_rate(sm, start, ends, sp, sel, velocities, start_velocity):
