@@ -191,7 +191,7 @@ def _keep(k, cap, pair, face, s, t, out_pair, out_face, out_st):
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _candidates(V, F, N, S, P, tol, cap, out_pair, out_face, out_st):
     """Facets on which the linearly interpolated tangential bisector vanishes, for every pair,
-    every facet tested (the reference of :func:`_candidates_blocked`); returns the number found
+    every facet tested (the reference of :func:`_candidates_tree`); returns the number found
     (rows past ``cap`` are counted, not written)."""
     tang = np.empty((V.shape[0], 3))
     k = 0
@@ -208,76 +208,116 @@ def _candidates(V, F, N, S, P, tol, cap, out_pair, out_face, out_st):
     return k
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _source_terms(S, centre, radius, active):
-    """Per active block, what the source alone contributes to the block test: the unit vector
-    from the source to the block's centre, the most it turns over the block, and whether the
-    source is near (rows: ux, uy, uz, turn, near)."""
-    out = np.empty((active.shape[0], 5))
-    for i in range(active.shape[0]):
-        blk = active[i]
-        rho = radius[blk]
-        dx, dy, dz = centre[blk, 0] - S[0], centre[blk, 1] - S[1], centre[blk, 2] - S[2]
-        r = np.sqrt(dx * dx + dy * dy + dz * dz)
-        inv = 1.0 / max(r, 1e-300)
-        out[i, 0] = dx * inv
-        out[i, 1] = dy * inv
-        out[i, 2] = dz * inv
-        out[i, 3] = 2.0 * rho / max(r - rho, 1e-300)
-        out[i, 4] = 1.0 if r <= 2.0 * rho else 0.0
-    return out
+#: the bound of the tight block test (rad): a bounce point is kept when the legs' bisector is
+#: within asin(1e-3) of the surface normal there (``specular_points``' residual test)
+_TIGHT_MARGIN = 2e-3
+#: the fixed margin (rad) of the loose block test, where a candidate is kept without a residual
+#: test (no Newton steps) or is refined off the mesh (an exact height field)
+_LOOSE_MARGIN = 0.1
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _chord(x):
+    """The most a unit vector from a point turns, 2 sin(½ asin x), as the point's target moves
+    within a sphere of radius ρ seen at distance r > ρ (x = ρ/r < 1); written without the
+    cancellation of 1 − √(1 − x²)."""
+    return x * np.sqrt(2.0 / (1.0 + np.sqrt(1.0 - x * x))) * (1.0 + 1e-12)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _skip_tight(S, P, cx, cy, cz, rho, ax, ay, az, spread, margin):
+    """Whether no point of the sphere (centre c, radius ``rho``) can hold a bisector
+    ê_S + ê_P within ``spread`` + ``margin`` of the cone axis (±a): the bisector at the centre
+    is farther from the axis than the cone, the margin and the most it turns in the sphere
+    (each unit leg by at most the chord of the sphere's angular radius)."""
+    dx, dy, dz = cx - S[0], cy - S[1], cz - S[2]
+    ex, ey, ez = cx - P[0], cy - P[1], cz - P[2]
+    r_s = np.sqrt(dx * dx + dy * dy + dz * dz)
+    r_p = np.sqrt(ex * ex + ey * ey + ez * ez)
+    if r_s <= rho or r_p <= rho:
+        return False
+    bx, by, bz = dx / r_s + ex / r_p, dy / r_s + ey / r_p, dz / r_s + ez / r_p
+    m = np.sqrt(bx * bx + by * by + bz * bz)
+    turn = _chord(rho / r_s) + _chord(rho / r_p)
+    if m <= turn:
+        return False
+    ang = np.arccos(min(1.0, abs(bx * ax + by * ay + bz * az) / m))
+    return ang > spread + margin + np.arcsin(turn / m)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _skip_node_loose(S, P, cx, cy, cz, rho, ax, ay, az, spread, margin):
+    """Whether the loose block test (:func:`_skip_block_loose`) skips every block of a node
+    (its blocks' spheres inside the node's, their normal cones inside its cone): the node's
+    bisector is farther from its cone than the margin, the most a block's centre turns it
+    (T, the loose bound 2ρ/(r − ρ) per leg over the node's sphere) and the most the block's own
+    test then adds (asin T/(m − T)), with 1e-9 rad for rounding."""
+    dx, dy, dz = cx - S[0], cy - S[1], cz - S[2]
+    ex, ey, ez = cx - P[0], cy - P[1], cz - P[2]
+    r_s = np.sqrt(dx * dx + dy * dy + dz * dz)
+    r_p = np.sqrt(ex * ex + ey * ey + ez * ez)
+    if r_s <= 3.0 * rho or r_p <= 3.0 * rho:
+        return False
+    bx, by, bz = dx / r_s + ex / r_p, dy / r_s + ey / r_p, dz / r_s + ez / r_p
+    m = np.sqrt(bx * bx + by * by + bz * bz)
+    turn = 2.0 * rho / (r_s - rho) + 2.0 * rho / (r_p - rho)
+    if m <= 2.0 * turn:
+        return False
+    ang = np.arccos(min(1.0, abs(bx * ax + by * ay + bz * az) / m))
+    return ang > spread + margin + np.arcsin(turn / m) + np.arcsin(turn / (m - turn)) + 1e-9
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _skip_block_loose(S, P, cx, cy, cz, rho, ax, ay, az, cos_a, sin_a, wide, margin_ok):
+    """The loose block test: the angle test ang > a + asin(x) (a = cone + margin,
+    x = turn / |b|, turn = 2ρ/(r − ρ) per leg) as cos(ang) < cos a √(1−x²) − sin a · x, valid
+    while a + asin(x) < π (``wide`` blocks, a ≥ π/2, may exceed it)."""
+    dx, dy, dz = cx - S[0], cy - S[1], cz - S[2]
+    r = np.sqrt(dx * dx + dy * dy + dz * dz)
+    inv = 1.0 / max(r, 1e-300)
+    s0, s1, s2 = dx * inv, dy * inv, dz * inv
+    s3 = 2.0 * rho / max(r - rho, 1e-300)
+    near_s = r <= 2.0 * rho
+    ex, ey, ez = cx - P[0], cy - P[1], cz - P[2]
+    r_p = np.sqrt(ex * ex + ey * ey + ez * ez)
+    near = near_s | (r_p <= 2.0 * rho)
+    i_p = 1.0 / max(r_p, 1e-300)
+    bx = s0 + ex * i_p
+    by = s1 + ey * i_p
+    bz = s2 + ez * i_p
+    turn = s3 + 2.0 * rho / max(r_p - rho, 1e-300)
+    m = np.sqrt(bx * bx + by * by + bz * bz)
+    x = min(1.0, turn / max(m, 1e-300))
+    cosang = abs(bx * ax + by * ay + bz * az) / max(m, 1e-300)
+    limit = cos_a * np.sqrt(1.0 - x * x) - sin_a * x
+    return (not near) and (m > turn) and (cosang < limit) and margin_ok and not (wide and x >= sin_a)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _block_mask(src, P, centre, radius, axis, cos_a, sin_a, wide, margin_ok, active, mask):
-    """mask[i] = 1 where the reflection law may hold in block active[i] for the pair (S, P)
-    (``src``: :func:`_source_terms` of S): the test of :func:`_candidates_blocked` without
-    branches, so that it vectorises — the angle test ang > a + asin(x) (a = cone + margin,
-    x = turn / |b|) as cos(ang) < cos a √(1−x²) − sin a · x, valid while a + asin(x) < π
-    (``wide`` blocks, a ≥ π/2, may exceed it)."""
-    for i in range(active.shape[0]):
-        blk = active[i]
-        rho = radius[blk]
-        ex, ey, ez = centre[blk, 0] - P[0], centre[blk, 1] - P[1], centre[blk, 2] - P[2]
-        r_p = np.sqrt(ex * ex + ey * ey + ez * ez)
-        near = (src[i, 4] > 0.0) | (r_p <= 2.0 * rho)
-        # far enough from both ends here (near ones pass whatever these give)
-        i_p = 1.0 / max(r_p, 1e-300)
-        bx = src[i, 0] + ex * i_p
-        by = src[i, 1] + ey * i_p
-        bz = src[i, 2] + ez * i_p
-        turn = src[i, 3] + 2.0 * rho / max(r_p - rho, 1e-300)
-        m = np.sqrt(bx * bx + by * by + bz * bz)
-        x = min(1.0, turn / max(m, 1e-300))
-        cosang = abs(bx * axis[blk, 0] + by * axis[blk, 1] + bz * axis[blk, 2]) / max(m, 1e-300)
-        limit = cos_a[blk] * np.sqrt(1.0 - x * x) - sin_a[blk] * x
-        skip = (~near) & (m > turn) & (cosang < limit) & margin_ok[blk] & ~(wide[blk] & (x >= sin_a[blk]))
-        mask[i] = 0 if skip else 1
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _candidates_blocked(V, F, N, S, P, tol, order, starts, centre, radius, axis, spread, bvert,
-                        bvstart, local, allowed, margin, cap, out_pair, out_face, out_st):
+def _candidates_tree(V, F, N, S, P, tol, order, starts, centre, radius, axis, spread, bvert,
+                     bvstart, local, tight_radius, n_centre, n_radius, n_axis, n_spread,
+                     n_first, roots, allowed, tight, cap, out_pair, out_face, out_st):
     """:func:`_candidates` over blocks of spatially close facets, skipping a block where the
-    reflection law cannot hold: the angle between the legs' bisector at its centre and the
-    block's normal cone exceeds the cone's half-angle, plus the most the bisector can turn
-    within the block's bounding sphere, plus ``margin`` (rad); and the blocks not
-    ``allowed``. In a block that may hold a bounce point each vertex's residual is evaluated
-    once (``bvert``: the blocks' vertices, ``local``: each facet's three, indexed into its
-    block's), as :func:`_candidates` does. The sources' terms are computed once for a run of
-    pairs that share their source (the usual case: a phase centre and many targets)."""
+    reflection law cannot hold there, and whole nodes of blocks (a tree over the blocks, each
+    node a sphere and a normal cone holding its children's) where it cannot hold in any.
+
+    ``tight``: a block is skipped where the legs' bisector stays, everywhere in the block's
+    sphere (``tight_radius``: grown by the most the smooth surface lifts off its facets), farther
+    from its normal cone than asin 1e-3 — the residual a bounce point must meet — with 1e-3 rad to
+    spare: no bounce point it could hold survives :func:`specular_points`' test, so the same
+    points come out as from :func:`_candidates` (their Newton steps may stop at another
+    iteration: the same points to ~1e-12 m). Otherwise the loose test: the cone's half-angle
+    plus a fixed 0.1 rad margin (the candidates themselves are kept, or refined off the mesh); its
+    nodes skip only where it skips every block, so the candidates are those of the block test
+    alone. In a block that may hold a bounce point each vertex's residual is evaluated once
+    (``bvert``: the blocks' vertices, ``local``: each facet's three, indexed into its block's),
+    as :func:`_candidates` does; the blocks not ``allowed`` are skipped. Nodes: ids from the
+    number of blocks on, the children of node i are ``n_first[i] .. n_first[i + 1]`` (blocks or
+    nodes), ``roots`` the top ones; pairs and blocks are visited in order."""
     k = 0
     n_b = starts.shape[0] - 1
-    n_act = 0
-    for blk in range(n_b):
-        if allowed[blk]:
-            n_act += 1
-    active = np.empty(n_act, np.int64)
-    n_act = 0
-    for blk in range(n_b):
-        if allowed[blk]:
-            active[n_act] = blk
-            n_act += 1
+    n_n = n_centre.shape[0]
+    margin = _TIGHT_MARGIN if tight else _LOOSE_MARGIN
     a = np.empty(n_b)
     for blk in range(n_b):
         a[blk] = spread[blk] + margin
@@ -285,23 +325,61 @@ def _candidates_blocked(V, F, N, S, P, tol, order, starts, centre, radius, axis,
     sin_a = np.sin(a)
     wide = a >= 0.5 * np.pi
     margin_ok = a < np.pi          # a cone of half-angle π or more holds every direction
-    mask = np.empty(n_act, np.uint8)
+    # a node holds an allowed block (children come before their parents)
+    n_ok = np.zeros(n_n, np.uint8)
+    for i in range(n_n):
+        for c in range(n_first[i], n_first[i + 1]):
+            if (allowed[c] if c < n_b else n_ok[c - n_b]) != 0:
+                n_ok[i] = 1
+                break
     most = 0
     for blk in range(n_b):
         most = max(most, bvstart[blk + 1] - bvstart[blk])
     tang = np.empty((most, 3))
-    src = np.empty((0, 5))
+    stack = np.empty(64 * (roots.shape[0] + 16), np.int64)
     for j in range(S.shape[0]):
-        if j == 0 or S[j, 0] != S[j - 1, 0] or S[j, 1] != S[j - 1, 1] or S[j, 2] != S[j - 1, 2]:
-            src = _source_terms(S[j], centre, radius, active)
-        _block_mask(src, P[j], centre, radius, axis, cos_a, sin_a, wide, margin_ok, active, mask)
-        for ia in range(n_act):
-            if mask[ia] == 0:
+        Sj, Pj = S[j], P[j]
+        top = 0
+        for i in range(roots.shape[0] - 1, -1, -1):
+            stack[top] = roots[i]
+            top += 1
+        while top > 0:
+            top -= 1
+            node = stack[top]
+            if node >= n_b:
+                i = node - n_b
+                if n_ok[i] == 0:
+                    continue
+                if tight:
+                    skip = _skip_tight(Sj, Pj, n_centre[i, 0], n_centre[i, 1], n_centre[i, 2],
+                                       n_radius[i], n_axis[i, 0], n_axis[i, 1], n_axis[i, 2],
+                                       n_spread[i], margin)
+                else:
+                    skip = _skip_node_loose(Sj, Pj, n_centre[i, 0], n_centre[i, 1],
+                                            n_centre[i, 2], n_radius[i], n_axis[i, 0],
+                                            n_axis[i, 1], n_axis[i, 2], n_spread[i], margin)
+                if skip:
+                    continue
+                for c in range(n_first[i + 1] - 1, n_first[i] - 1, -1):
+                    stack[top] = c
+                    top += 1
                 continue
-            blk = active[ia]
+            blk = node
+            if allowed[blk] == 0:
+                continue
+            if tight:
+                skip = _skip_tight(Sj, Pj, centre[blk, 0], centre[blk, 1], centre[blk, 2],
+                                   tight_radius[blk], axis[blk, 0], axis[blk, 1], axis[blk, 2],
+                                   spread[blk], margin)
+            else:
+                skip = _skip_block_loose(Sj, Pj, centre[blk, 0], centre[blk, 1], centre[blk, 2],
+                                         radius[blk], axis[blk, 0], axis[blk, 1], axis[blk, 2],
+                                         cos_a[blk], sin_a[blk], wide[blk], margin_ok[blk])
+            if skip:
+                continue
             v0 = bvstart[blk]
             for u in range(bvstart[blk + 1] - v0):
-                tang[u, 0], tang[u, 1], tang[u, 2] = _residual(V, N, S[j], P[j], bvert[v0 + u])
+                tang[u, 0], tang[u, 1], tang[u, 2] = _residual(V, N, Sj, Pj, bvert[v0 + u])
             for i in range(starts[blk], starts[blk + 1]):
                 f = order[i]
                 la, lb, lc = local[i, 0], local[i, 1], local[i, 2]
@@ -346,8 +424,50 @@ def _blocks(V, F, N, size: int = 16):
     bvert = (uniq % len(V)).astype(np.int64)
     bvstart = np.searchsorted(uniq, np.arange(at.size + 1, dtype=np.int64) * len(V)).astype(np.int64)
     local = (np.searchsorted(uniq, key) - bvstart[owner]).reshape(-1, 3).astype(np.int64)
+    # the tight test's spheres: the smooth surface lifts a facet's point by at most half its
+    # longest edge times the sine between a vertex normal and the facet's (Phong, α = ½)
+    tri = V[F[order]]
+    fn = _unit(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
+    edge = np.max(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2), axis=1)
+    cos_vf = np.abs(np.einsum("fvj,fj->fv", N[F[order]], fn))
+    sag = 0.5 * edge * np.sqrt(np.clip(1.0 - cos_vf.min(axis=1) ** 2, 0.0, 1.0)) + 1e-6 * edge
+    tight_radius = (radius + np.maximum.reduceat(sag, starts[:-1])) * (1 + 1e-9) + 1e-12
     return (order.astype(np.int64), starts, centre, radius, axis, spread, bvert, bvstart,
-            np.ascontiguousarray(local))
+            np.ascontiguousarray(local), tight_radius, *_tree(centre, tight_radius, axis, spread))
+
+
+def _tree(centre, radius, axis, spread, fan: int = 8):
+    """Nodes over the blocks (consecutive in Morton order, ``fan`` to a node, level by level
+    until at most ``fan`` are left): each node's sphere holds its children's spheres and its
+    normal cone their cones. Returns (centre, radius, axis, spread, first, roots): node i's
+    children are the ids ``first[i] .. first[i + 1]`` (ids below the number of blocks are
+    blocks, node i is id n_blocks + i), ``roots`` the ids of the top level."""
+    n_b = centre.shape[0]
+    cen, rad, ax, spr, first = [], [], [], [], []
+    ids = np.arange(n_b, dtype=np.int64)          # the current level's ids
+    lc, lr, la, ls = centre, radius, axis, spread
+    while ids.size > fan:
+        at = np.arange(0, ids.size, fan)
+        cnt = np.diff(np.append(at, ids.size))
+        owner = np.repeat(np.arange(at.size), cnt)
+        c = np.add.reduceat(lc, at, axis=0) / cnt[:, None]
+        r = np.maximum.reduceat(np.linalg.norm(lc - c[owner], axis=1) + lr, at) * (1 + 1e-9)
+        s = np.add.reduceat(la, at, axis=0)
+        ns = np.linalg.norm(s, axis=1)
+        a = np.where(ns[:, None] > 0, s / np.where(ns > 0, ns, 1.0)[:, None], [0.0, 0.0, 1.0])
+        turn = np.arccos(np.clip(np.einsum("ij,ij->i", la, a[owner]), -1.0, 1.0))
+        sp = np.minimum(np.maximum.reduceat(turn + ls, at) * (1 + 1e-9) + 1e-12, np.pi)
+        first.append(ids[at])
+        cen.append(c), rad.append(r), ax.append(a), spr.append(sp)
+        ids = n_b + sum(len(x) for x in cen[:-1]) + np.arange(at.size, dtype=np.int64)
+        lc, lr, la, ls = c, r, a, sp
+    if not cen:
+        z = np.zeros((0, 3))
+        return z, np.zeros(0), z.copy(), np.zeros(0), np.zeros(1, np.int64), ids
+    # the last level's children end where its own ids begin
+    first = np.concatenate(first + [ids[:1]]).astype(np.int64)
+    return (np.concatenate(cen), np.concatenate(rad), np.ascontiguousarray(np.concatenate(ax)),
+            np.concatenate(spr), first, ids)
 
 
 #: the blocks of the last few meshes searched, keyed by where their arrays live, their shapes
@@ -452,9 +572,10 @@ def _inside_xy(tri_xy, xy, eps):
     return (s >= -eps) & (t >= -eps) & (s + t <= 1 + eps), np.column_stack([s, t])
 
 
-def _search_split(V, F, N, S, P, tol, blocks, cap, allowed):
-    """The blocked search with the pairs split across two threads (the kernel releases the
-    GIL); the parts join in pair order, so the rows do not depend on the split."""
+def _search_split(V, F, N, S, P, tol, blocks, cap, allowed, tight):
+    """The blocked search (:func:`_candidates_tree`) with the pairs split across two threads
+    (the kernel releases the GIL); the parts join in pair order, so the rows do not depend on
+    the split."""
     import os
     from concurrent.futures import ThreadPoolExecutor
 
@@ -464,8 +585,8 @@ def _search_split(V, F, N, S, P, tol, blocks, cap, allowed):
             pair = np.empty(c, np.int64)
             face = np.empty(c, np.int64)
             st = np.empty((c, 2))
-            k = _candidates_blocked(V, F, N, S[lo:hi], P[lo:hi], tol, *blocks, allowed, 0.1, c,
-                                    pair, face, st)
+            k = _candidates_tree(V, F, N, S[lo:hi], P[lo:hi], tol, *blocks, allowed, tight, c,
+                                 pair, face, st)
             if k <= c:
                 return pair[:k] + lo, face[:k], st[:k]
             c = k
@@ -521,9 +642,12 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
     search_tolerance : float
         Facets are searched this fraction beyond their edges (points found twice are merged).
     cull : bool
-        Skip blocks of 16 neighbouring facets whose normals cannot meet the legs' bisector
-        (a conservative bound with a 0.1 rad margin); False tests every facet (the reference
-        the tests compare with).
+        Skip blocks of 16 neighbouring facets, and nodes of blocks, where the legs' bisector
+        cannot meet the surface normal (a bound, not an approximation: the bounce points are
+        those of the exhaustive search; with Newton steps on the mesh, a tight bound that
+        also leaves out facets whose candidates would fail the residual test, else a 0.1 rad
+        margin around the blocks' normal cones); False tests every facet (the reference the
+        tests compare with).
     window : (ndarray (3,), ndarray (3, 3), (az_lo, az_hi, el_lo, el_hi)), optional
         Search only blocks of facets that reach into this angular window (rad) seen from its
         origin (m), directions in the axes of the rotation's columns (a transmitter's fan:
@@ -551,6 +675,12 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
     if not (np.all(np.isfinite(S)) and np.all(np.isfinite(P))):
         raise ValueError("specular_points: sources and receivers must be finite")
     cap = max(256, 32 * S.shape[0])      # a wavy sea: a few glints per pair
+    rot = None
+    if height_field is not None:
+        f_hf, place = height_field
+        rot, shift = np.asarray(place, float)[:3, :3], np.asarray(place, float)[:3, 3]
+        if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-9):
+            rot = None                        # scaled: the mesh is the best we have
     blocks = _blocks_of(V, F, N, np.asarray(normals, float)) if cull else None
     if blocks is None:
         while True:
@@ -566,14 +696,11 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
         allowed = np.ones(blocks[1].size - 1, np.uint8)
         if window is not None:
             allowed = _window_blocks(blocks, window)
-        pair, face, st = _search_split(V, F, N, S, P, search_tolerance, blocks, cap, allowed)
+        # the tight bound holds for points refined on the mesh's smooth surface and tested
+        tight = rot is None and newton_iterations > 0
+        pair, face, st = _search_split(V, F, N, S, P, search_tolerance, blocks, cap, allowed,
+                                       tight)
     Sq, Pq = S[pair], P[pair]
-    rot = None
-    if height_field is not None:
-        f_hf, place = height_field
-        rot, shift = np.asarray(place, float)[:3, :3], np.asarray(place, float)[:3, 3]
-        if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-9):
-            rot = None                        # scaled: the mesh is the best we have
     if rot is not None:
         # Newton on the exact surface in its own frame, from the facet's estimate
         Vo = (V - shift) @ rot
