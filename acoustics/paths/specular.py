@@ -577,14 +577,38 @@ def _blocks(V, F, N, size: int = 16):
     local = (np.searchsorted(uniq, key) - bvstart[owner]).reshape(-1, 3).astype(np.int64)
     # the tight test's spheres: the smooth surface lifts a facet's point by at most half its
     # longest edge times the sine between a vertex normal and the facet's (Phong, α = ½)
-    tri = V[F[order]]
-    fn = _unit(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
-    edge = np.max(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2), axis=1)
-    cos_vf = np.abs(np.einsum("fvj,fj->fv", N[F[order]], fn))
-    sag = 0.5 * edge * np.sqrt(np.clip(1.0 - cos_vf.min(axis=1) ** 2, 0.0, 1.0)) + 1e-6 * edge
+    sag = _facet_sag(V, F, N, order)
     tight_radius = (radius + np.maximum.reduceat(sag, starts[:-1])) * (1 + 1e-9) + 1e-12
     return (order.astype(np.int64), starts, centre, radius, axis, spread, bvert, bvstart,
             np.ascontiguousarray(local), tight_radius, *_tree(centre, tight_radius, axis, spread))
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _facet_sag(V, F, N, order):
+    """Per facet (in ``order``): the most the smooth surface lifts a point of it off its plane,
+    half its longest edge times the largest sine between a vertex normal and the facet's
+    normal (Phong, α = ½), plus 1e-6 of the edge (points found 1e-6 outside it)."""
+    out = np.empty(order.shape[0])
+    for i in range(order.shape[0]):
+        f = order[i]
+        a, b, c = F[f, 0], F[f, 1], F[f, 2]
+        e1 = V[b] - V[a]
+        e2 = V[c] - V[a]
+        e3 = V[c] - V[b]
+        nx = e1[1] * e2[2] - e1[2] * e2[1]
+        ny = e1[2] * e2[0] - e1[0] * e2[2]
+        nz = e1[0] * e2[1] - e1[1] * e2[0]
+        nl = np.sqrt(nx * nx + ny * ny + nz * nz)
+        edge = max(np.sqrt(np.sum(e1 * e1)), np.sqrt(np.sum(e2 * e2)), np.sqrt(np.sum(e3 * e3)))
+        worst = 0.0
+        if nl > 0.0:
+            for v in (a, b, c):
+                cv = abs(N[v, 0] * nx + N[v, 1] * ny + N[v, 2] * nz) / nl
+                worst = max(worst, np.sqrt(max(0.0, 1.0 - cv * cv)))
+        else:
+            worst = 1.0                  # a degenerate facet: any lift up to its size
+        out[i] = 0.5 * edge * worst + 1e-6 * edge
+    return out
 
 
 def _tree(centre, radius, axis, spread, fan: int = 8):
