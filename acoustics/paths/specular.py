@@ -918,9 +918,12 @@ def _search_split(V, F, N, S, P, tol, blocks, cap, allowed, tight):
     if pool is None:
         out = [run(0, n_g)]
     else:
-        # two runs of groups with about as many pairs each
-        cut = int(np.clip(np.searchsorted(groups, S.shape[0] // 2), 1, n_g - 1))
-        out = list(pool.map(lambda ab: run(*ab), ((0, cut), (cut, n_g))))
+        # four runs of groups with about as many pairs each, taken by the two threads as they
+        # come free: on a shared machine one thread may stall, and the other goes on
+        parts = min(4, n_g)
+        cuts = np.unique(np.clip(np.searchsorted(groups, np.arange(parts + 1) * S.shape[0] // parts),
+                                 0, n_g))
+        out = list(pool.map(lambda ab: run(*ab), zip(cuts[:-1], cuts[1:])))
     pair, face, st, pos = (np.concatenate(col) for col in zip(*out))
     o = np.lexsort((pos, pair))
     return pair[o], face[o], st[o]
