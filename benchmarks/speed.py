@@ -49,8 +49,10 @@ def synthesis():
     model = EchoModel(son.transmitter, rx32, Medium(preset.SOUND_SPEED_M_S, 0.1), preset.CENTER_FREQUENCY_HZ,
                       preset.ADC_SCALE_COUNTS)
     kw = dict(pulse=Pulse(), rate_hz=preset.SAMPLE_RATE_HZ, n_samples=preset.SAMPLES_PER_PING)
+    import os
     rng = np.random.default_rng(2)
     n_threads = numba.get_num_threads()
+    load0 = os.getloadavg()
 
     p4, q4 = _scatterers(10_000, rng)
     synthesize(model, p4[:2], q4[:2], **kw)
@@ -71,12 +73,15 @@ def synthesis():
                               f"{t * 1e3:.0f}", f"{100_000 * 32 / t / 1e6:.1f}"])
         finally:
             numba.set_num_threads(n_threads)
+    load1 = os.getloadavg()
     return ("## Echo synthesis\n\n"
             "ABACUS transmitter (16 elements, ganged) and both receiver subarrays (32 elements), "
             "scatterers uniform over 11–66 m, ±8° azimuth, ±2° elevation, 4096 samples per "
             "channel. A scatterer-element pair is one arrival: geometry, transmit and receive "
             "directivity, spreading, absorption, carrier phase and its spreading onto the grid; "
-            "the FFT convolution with the pulse is included.\n\n"
+            "the FFT convolution with the pulse is included. Load average (1 min, 2 shared "
+            f"cores): {load0[0]:.1f} at the start, {load1[0]:.1f} at the end; numba's threading "
+            f"layer: {numba.threading_layer()}.\n\n"
             "**fast vs exact, 10⁴ scatterers x 32 elements** (requirement: >= 100x)\n\n"
             + table(["method", "time (s)", "speed-up"], rows1)
             + "\n\n**Throughput at 10⁵ scatterers x 32 elements** (requirement: >= 25 million "
@@ -85,8 +90,13 @@ def synthesis():
             + "\n\nThe compiled kernels (numba, `acoustics/synthesis/arrivals.py`) split receiver channels "
               "across threads, so every channel sums its arrivals in the same order and the "
               "result is bit-identical for any thread count (a test checks it). The per-pair "
-              "maths is vectorised over blocks of 256 scatterers; the carrier phase is reduced "
-              "in cycles before any trigonometry (`acoustics/synthesis/kernels.py`).")
+              "maths runs over blocks of 256 scatterers (scalar code: the directivity's "
+              "small-argument branches keep LLVM from vectorising it); the carrier phase is "
+              "reduced in cycles before any trigonometry (`acoustics/synthesis/kernels.py`); each "
+              "channel sums its arrivals' taps as contiguous real multiply-adds into a real and an "
+              "imaginary train. With OpenMP (numba's default layer) on a shared machine, two threads "
+              "can be slower than one: its idle workers spin after each parallel loop "
+              "(\"The hard survey\" measures the workqueue layer against it).")
 
 
 @section
