@@ -651,19 +651,21 @@ def _tree(centre, radius, axis, spread, fan: int = 8):
 _BLOCK_CACHE: list = []
 
 
-def _blocks_of(V, F, N, normals):
-    """:func:`_blocks`, cached (``normals``: the caller's array, before it was normalised)."""
+def _blocks_of(V, F, normals):
+    """:func:`_blocks` and the unit normals, cached (``normals``: the caller's array, before
+    it was normalised). Returns (blocks, unit normals)."""
     key = tuple((a.__array_interface__["data"][0], a.shape, float(a.reshape(-1)[::211].sum()))
                 for a in (V, F, normals))
     for i, entry in enumerate(_BLOCK_CACHE):
         if entry[0] == key:
             # most recently used first: a still floor is not pushed out by each ping's new sea
             _BLOCK_CACHE.insert(0, _BLOCK_CACHE.pop(i))
-            return entry[2]
+            return entry[2], entry[3]
+    N = np.ascontiguousarray(_unit(normals))
     blocks = _blocks(V, F, N)
-    _BLOCK_CACHE.insert(0, (key, (V, F, normals), blocks))
+    _BLOCK_CACHE.insert(0, (key, (V, F, normals), blocks, N))
     del _BLOCK_CACHE[4:]
-    return blocks
+    return blocks, N
 
 
 def _unit(x):
@@ -869,8 +871,11 @@ def _pair_groups(S, P, size: int = 16):
     """The pairs in groups for :func:`_candidates_tree`: one source per group and receivers
     close together (runs of ``size`` in Morton order of the receivers). Returns (perm, groups):
     group g is ``perm[groups[g]:groups[g + 1]]``."""
-    _, sid = np.unique(S, axis=0, return_inverse=True)
-    sid = sid.reshape(-1)
+    if (S == S[0]).all():                   # the usual case: one phase centre
+        sid = np.zeros(S.shape[0], np.int64)
+    else:
+        _, sid = np.unique(S, axis=0, return_inverse=True)
+        sid = sid.reshape(-1)
     lo, hi = P.min(axis=0), P.max(axis=0)
     q = ((P - lo) / max(float((hi - lo).max()), 1e-300) * 1023).astype(np.uint64)
     perm = np.lexsort((_morton(q), sid)).astype(np.int64)
@@ -993,7 +998,6 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
     """
     V = np.ascontiguousarray(np.asarray(vertices, float))
     F = np.ascontiguousarray(np.asarray(faces, np.int64))
-    N = np.ascontiguousarray(_unit(np.asarray(normals, float)))
     S = np.ascontiguousarray(np.asarray(sources_m, float).reshape(-1, 3))
     P = np.ascontiguousarray(np.asarray(receivers_m, float).reshape(-1, 3))
     if S.shape != P.shape:
@@ -1009,7 +1013,11 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
         rot, shift = np.asarray(place, float)[:3, :3], np.asarray(place, float)[:3, 3]
         if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-9):
             rot = None                        # scaled: the mesh is the best we have
-    blocks = _blocks_of(V, F, N, np.asarray(normals, float)) if cull else None
+    normals = np.asarray(normals, float)
+    if cull:
+        blocks, N = _blocks_of(V, F, normals)
+    else:
+        blocks, N = None, np.ascontiguousarray(_unit(normals))
     if blocks is None:
         while True:
             pair = np.empty(cap, np.int64)
