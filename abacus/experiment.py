@@ -195,12 +195,11 @@ def run_task(payload: dict) -> dict:
     # one line per kind of warning (the numbers in a message differ from ping to ping)
     notes = sorted({n.split("(")[0].strip()[:200] for n in list(ev["notes"]) + extra
                     + [str(w.message) for w in caught if not issubclass(w.category, SceneWarning)]})
-    prov = tree["Provenance"].ds
+    from processing.base.dataset import stage_seconds
     return {"id": payload["id"], "per_ping": {k: v[:, 0] for k, v in ev["per_ping"].items()},
             "noise_histogram": ev["noise_histogram"][0], "figure": figure,
             "seconds": time.perf_counter() - t0,
-            "stage_seconds": dict(zip(prov["stage"].values.tolist(),
-                                      prov["stage_seconds"].values.tolist())),
+            "stage_seconds": stage_seconds(tree),
             "notes": notes}
 
 

@@ -17,6 +17,7 @@ import numpy as np
 from _report import ROOT, Report, best_time, db, table
 
 from acoustics.sonar import preset
+from processing.base.dataset import stage_seconds
 
 REPORT = Report(
     "Accuracy vs cost",
@@ -365,7 +366,7 @@ def _floor_run(density, level, pings):
         scene = scene_from_text(FLOOR45.format(density=density, level=level, pings=pings))
     tree = simulate(scene)
     prov = tree["Provenance"].ds
-    sec = dict(zip(prov["stage"].values.tolist(), prov["stage_seconds"].values.tolist()))
+    sec = stage_seconds(tree)
     t = (sec.get("rays_build", 0) + sec.get("reverberation", 0) + sec.get("echoes", 0)) / pings
     rays = json.loads(prov.attrs["rays_cast_json"]).get("reverberation", 0)
     im = processing.images_of(processing.image(tree))
@@ -982,8 +983,7 @@ def swimbladder():
         t0 = time.perf_counter()
         tree = simulate(sc)
         dt = time.perf_counter() - t0
-        stages = dict(zip(tree["Provenance"].ds["stage"].values,
-                          tree["Provenance"].ds["stage_seconds"].values))
+        stages = stage_seconds(tree)
         im = processing.images_of(processing.image(tree))
         return np.abs(im.image[0, 0]).max(), dt, stages
 

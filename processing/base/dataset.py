@@ -39,7 +39,8 @@ from processing.base.contract import (CONVENTIONS, ELEMENT_GROUP, ENVIRONMENT_GR
 __all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "ping_indices", "TRUTH_GROUP",
            "write_tree", "write_dataset", "check_finite", "NAN_MEANS", "open_tree", "tree_pings", "source_of", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
            "read_record", "beam_samples", "LEGACY_ELEMENT_GROUP", "as_tree", "group_of", "has_group",
-           "missing_variables", "echosounder_model", "SIMRAD_MODELS", "sonar_convention_version"]
+           "missing_variables", "echosounder_model", "SIMRAD_MODELS", "sonar_convention_version",
+           "stage_seconds"]
 
 FORMATS = ("netcdf", "zarr")
 
@@ -484,6 +485,33 @@ def group_of(tree: xr.DataTree, group: str) -> xr.Dataset | None:
     except KeyError:
         return None
     return node.ds if isinstance(node, xr.DataTree) else None
+
+
+def stage_seconds(tree: xr.DataTree) -> dict:
+    """The wall time of each simulation stage that made the dataset, in the order they ran.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+
+    Returns
+    -------
+    dict of str to float
+        Stage name -> seconds (s); empty without /Provenance or its timings. Read from the
+        ``stage_seconds_json`` attribute, or from the ``stage_seconds`` variable along ``stage``
+        of files written before the timings became attributes.
+    """
+    import json
+
+    from processing.base.contract import PROVENANCE_GROUP
+    prov = group_of(tree, PROVENANCE_GROUP)
+    if prov is None:
+        return {}
+    if "stage_seconds_json" in prov.attrs:
+        return {str(k): float(v) for k, v in json.loads(str(prov.attrs["stage_seconds_json"])).items()}
+    if "stage_seconds" in prov and "stage" in prov:          # the layout before
+        return {str(k): float(v) for k, v in zip(prov["stage"].values, prov["stage_seconds"].values)}
+    return {}
 
 
 def has_group(tree: xr.DataTree, group: str) -> bool:
