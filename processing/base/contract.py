@@ -27,7 +27,7 @@ from dataclasses import dataclass
 __all__ = ["ROOT_GROUP", "ENVIRONMENT_GROUP", "PLATFORM_GROUP", "PROVENANCE_GROUP", "SONAR_GROUP",
            "BEAM_GROUP_NAME", "ELEMENT_GROUP", "TRUTH_GROUP", "ARRIVALS_GROUP", "PROCESSING_GROUP", "DETECTIONS_GROUP",
            "COUNTS_GROUP", "SV_GROUP", "TRACKS_GROUP", "LABELS_GROUP", "PRODUCT_GROUPS", "LEGACY_ELEMENT_GROUP",
-           "LEGACY_TRUTH_GROUP", "CONVENTIONS", "CHANNEL", "KINDS", "Variable", "Attribute", "Group",
+           "LEGACY_TRUTH_GROUP", "ECHOPYPE_GROUPS", "FLAT_HOST", "FLAT_MAP_ATTR", "flat_name", "CONVENTIONS", "CHANNEL", "KINDS", "Variable", "Attribute", "Group",
            "GROUPS", "group_spec", "node_path", "markdown", "MARKDOWN_BEGIN", "MARKDOWN_END"]
 
 # ------------------------------------------------------------------ group paths
@@ -59,6 +59,28 @@ PRODUCT_GROUPS = {
     TRACKS_GROUP: "processing.tracking.tracks: tracks and track points",
     LABELS_GROUP: "processing.imaging.labels: what made each image cell (simulated data with arrivals)",
 }
+
+#: the groups echopype's EchoData knows (its convention table, echodata/convention/1.0.yml): its
+#: repr names every group of a file by that table (any other group: ``KeyError``), so a file
+#: abacus writes holds no other group. The others — the /Processing products and
+#: /Vendor_specific/Arrivals — lie flat in :data:`FLAT_HOST` in the file, each variable,
+#: dimension and attribute of group ``G`` named :func:`flat_name` ``(G, name)``, the way back in
+#: the attribute :data:`FLAT_MAP_ATTR` (processing/base/file_layout.py; docs/dataset.md, "In the
+#: file"). In memory they are groups.
+ECHOPYPE_GROUPS = ("/", "/Environment", "/Platform", "/Platform/NMEA", "/Provenance", "/Sonar",
+                   *(f"/Sonar/Beam_group{i}" for i in range(1, 5)), "/Vendor_specific")
+#: where the other groups lie in the file: SONAR-netCDF4 1.0 leaves vendor content to this group
+FLAT_HOST = TRUTH_GROUP
+#: the attribute of :data:`FLAT_HOST` listing each flattened group's variables, coordinates,
+#: dimensions and attributes (JSON)
+FLAT_MAP_ATTR = "abacus_flat_groups_json"
+
+
+def flat_name(group: str, name: str) -> str:
+    """The name in the file of variable, dimension or attribute ``name`` of a group that lies flat
+    in :data:`FLAT_HOST`: the group path with dots, then the name (``Processing.Sv.Sv``)."""
+    return f"{group.strip('/').replace('/', '.')}.{name}"
+
 
 #: the layout abacus wrote before SONAR-netCDF4 1.0 (read by `abacus convert`)
 LEGACY_ELEMENT_GROUP = "Simulation/Element_group1"

@@ -14,7 +14,8 @@ are in one table, processing/base/contract.py, which docs/dataset.md shows)::
                                     element; element geometry and subarrays per beam; sample
                                     interval, blanking interval, transmit parameters
     /Vendor_specific                abacus' ground truth: targets per ping (simulated data only)
-    /Processing                     images, detections, counts, tracks (processing)
+    /Processing                     images, detections, counts, tracks (processing); in the
+                                    file flat in /Vendor_specific (processing/base/file_layout.py)
 
 Complex arrays are stored as ``_r``/``_i`` float32 pairs; ``range_sample`` stays in one chunk.
 This is the only module that writes NetCDF or Zarr. Writes are atomic: a temporary file (or
@@ -68,8 +69,10 @@ def _encoding(tree: xr.DataTree) -> dict:
     for node in tree.subtree:
         per = {}
         for name, var in node.ds.data_vars.items():
-            if "ping_time" in var.dims and var.ndim >= 2:
-                chunks = tuple(1 if d == "ping_time" else var.sizes[d] for d in var.dims)
+            # a product lying flat in /Vendor_specific has its ping_time as `<group>.ping_time`
+            per_ping = [str(d).rsplit(".", 1)[-1] == "ping_time" for d in var.dims]
+            if any(per_ping) and var.ndim >= 2:
+                chunks = tuple(1 if p else var.sizes[d] for d, p in zip(var.dims, per_ping))
                 per[name] = {"chunksizes": chunks}
         if per:
             enc[node.path] = per
@@ -136,10 +139,13 @@ def write_tree(tree: xr.DataTree, path: str | Path, *, fmt: str | None = None) -
     fmt = _format_of(path, fmt)
     if not path.parent.exists():
         raise DatasetError(f"{path}: the folder {path.parent} does not exist")
+    from processing.base.file_layout import flatten
     for node in tree.subtree:
         check_finite(node.ds, where=f"{path}: /{node.path.strip('/')}")
     if fmt == "zarr":
         require("zarr", f"writing Zarr ({path.name})")
+    # the groups echopype does not know lie flat in /Vendor_specific (open_tree restores them)
+    tree = flatten(tree)
     with staged(path) as tmp:
         if fmt == "netcdf":
             with _small_chunk_cache():
@@ -250,7 +256,8 @@ def open_tree(path: str | Path, *, max_memory_gb: float | None = None,
         check_resources(Estimate(size * (1.0 + work_factor), 0.0, [("dataset", size)],
                                  keys="the pings in the file (process it in parts)"),
                         what=f"{path}", max_memory_gb=max_memory_gb)
-        return tree.load()
+        from processing.base.file_layout import restore
+        return restore(tree.load())
     except (DatasetError, ValueError) as exc:
         if exc.__class__.__name__ == "ResourceError" or isinstance(exc, DatasetError):
             raise
