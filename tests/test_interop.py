@@ -295,14 +295,16 @@ def processed():
 
 @pytest.mark.parametrize("name", ["p.nc", "p.zarr"])
 def test_a_processed_file_holds_only_echopypes_groups_and_opens_as_it_was(processed, tmp_path, name):
-    """echopype's repr fails on any group outside its table (KeyError 'Processing/Sv'): in the
-    file the products and the arrivals lie flat in /Vendor_specific; open_tree gives back every
+    """echopype's repr fails on any group outside its table that holds data (KeyError
+    'Processing/Sv'), its combine_echodata on an empty one: in the file the products and the
+    arrivals lie flat in /Vendor_specific; open_tree gives back every
     group, variable, coordinate and attribute identical (NetCDF and Zarr)."""
     assert {"/Processing/Sv", "/Processing/Tracks", "/Vendor_specific/Arrivals"} <= set(_nodes(processed))
     processing.write_tree(processed, tmp_path / name)
     how = {"engine": "zarr", "consolidated": False} if name.endswith(".zarr") else {"engine": "netcdf4"}
     with xr.open_datatree(tmp_path / name, **how) as raw:
-        assert {n.path for n in raw.subtree if n.has_data or n.has_attrs} <= ECHOPYPE_TABLE
+        # every group, empty ones included (echopype's combine_echodata reads each as a dataset)
+        assert {n.path for n in raw.subtree} <= ECHOPYPE_TABLE
         vend = raw["Vendor_specific"].ds
         assert all(str(d).startswith("Processing.Sv.") for d in vend["Processing.Sv.Sv"].dims)
         assert vend["Vendor_specific.Arrivals.arrival_delay"].dims == ("Vendor_specific.Arrivals.arrival",)
@@ -365,3 +367,18 @@ def test_the_truth_lies_along_ping_time_and_the_layout_before_still_processes(tm
     old_counts = processing.counts_of(processing.count(back))
     for k in new_counts.data_vars:
         np.testing.assert_array_equal(old_counts[k].values, new_counts[k].values)
+
+
+def test_sv_alone_leaves_no_empty_group_in_the_file(tmp_path):
+    """`abacus sv` on a raw file makes /Processing/Sv under an empty /Processing: the file holds
+    neither (an empty group outside echopype's table stops its combine_echodata), and open_tree
+    gives /Processing/Sv back."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tree = processing.sv(acoustics.simulate(acoustics.load_scene("two_targets"), pings=range(1)), cells=True)
+    assert not tree["Processing"].has_data
+    processing.write_tree(tree, tmp_path / "p.nc")
+    with xr.open_datatree(tmp_path / "p.nc") as raw:
+        assert {n.path for n in raw.subtree} <= ECHOPYPE_TABLE
+    back = open_tree(tmp_path / "p.nc")
+    assert back["Processing/Sv"].to_dataset(inherit=False).identical(tree["Processing/Sv"].to_dataset(inherit=False))

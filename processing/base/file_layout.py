@@ -46,8 +46,8 @@ def flatten(tree: xr.DataTree) -> xr.DataTree:
     """
     groups = _datasets(tree)
     host_path = node_path(FLAT_HOST)
-    moved = {p: ds for p, ds in groups.items()
-             if p not in ECHOPYPE_GROUPS and (ds.variables or ds.attrs)}
+    # empty ones too: echopype takes a group of the file without data for a group it cannot read
+    moved = {p: ds for p, ds in groups.items() if p not in ECHOPYPE_GROUPS}
     if not moved:
         return tree
     host = groups.get(host_path)
