@@ -453,7 +453,10 @@ class RecordChain:
             (the echo's phase along range), the limits each was held to
             (``phase_deviation_limit_deg``, ``azimuth_phase_deviation_limit_deg``,
             ``range_phase_deviation_limit_deg``: the fixed limit widened by the noise's share,
-            ``single_target.phase_deviation_sigmas``), ``echo_spacing`` (nominal pulse lengths, inf alone),
+            ``single_target.phase_deviation_sigmas``), the noise's share of each
+            (``phase_deviation_noise_deg``, ``azimuth_phase_deviation_noise_deg``,
+            ``range_phase_deviation_noise_deg``: the spread noise alone gives one echo there, NaN
+            without a noise level), ``echo_spacing`` (nominal pulse lengths, inf alone),
             ``rejected_by`` (str: the first rule failed, "" for a single target) and
             ``single_target`` (bool).
         """
@@ -504,6 +507,8 @@ class RecordChain:
                 "phase_deviation_deg": phase_dev, "angle_deviation_deg": angle_dev,
                 "azimuth_phase_deviation_deg": az_phase_dev, "azimuth_deviation_deg": az_dev,
                 "range_phase_deviation_deg": range_dev,
+                "phase_deviation_noise_deg": noise[0], "azimuth_phase_deviation_noise_deg": noise[1],
+                "range_phase_deviation_noise_deg": noise[2],
                 "phase_deviation_limit_deg": np.where(np.isnan(phase_dev), np.nan, limits[0]),
                 "azimuth_phase_deviation_limit_deg": np.where(np.isnan(az_phase_dev), np.nan, limits[1]),
                 "range_phase_deviation_limit_deg": np.where(np.isnan(range_dev), np.nan, limits[2]),
