@@ -246,8 +246,9 @@ class SingleTargetSettings(ConfigModel):
     maximum_phase_deviation: NonNegativeReal | None = Field(3.0, alias="maximum_phase_deviation_deg",
                                                            le=180)
     """param_maximum_phase_deviation: maximum standard deviation (deg, electrical) of the phase
-    over the samples within the echo's −6 dB points, the larger of the two planes' (elevation:
-    ψ_AB; azimuth: the split-aperture phase of the beam-domain peak); null: not applied. Noise
+    over the samples within the echo's −6 dB points, in either plane (elevation: ψ_AB; azimuth:
+    the split-aperture phase of the beam-domain peak), each plane against this limit widened by
+    its own noise (``phase_deviation_sigmas``); null: not applied. Noise
     alone gives ≈ 0.5° at SNR 50 dB and up to ≈ 3° at 38 dB, which ``phase_deviation_sigmas``
     allows for."""
     maximum_range_phase_deviation: NonNegativeReal | None = Field(

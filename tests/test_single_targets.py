@@ -157,7 +157,7 @@ def test_split_phase_noise_gain_against_beamformed_noise():
     assert np.std(split_deg) == pytest.approx(g * np.degrees(sigma_beam / magnitude), rel=0.05)
 
 
-def test_phase_limits_widen_with_the_noise_in_quadrature():
+def test_phase_limits_widen_with_the_noise_in_quadrature(tmp_path):
     """k = 0 is the fixed limit (EK60/Echoview); k > 0 adds k σ_noise in quadrature, per plane;
     the range phase rule follows the angle rules."""
     from processing.backscatter.echo_criteria import phase_limit_deg
@@ -178,6 +178,14 @@ def test_phase_limits_widen_with_the_noise_in_quadrature():
     got = verdicts(**ok, phase_deviation_deg=dev, phase_noise_deg=nz, range_phase_deviation_deg=rp,
                    range_phase_noise_deg=rpn, settings=k0).tolist()
     assert got == ["maximum_phase_deviation", "maximum_phase_deviation", "maximum_range_phase_deviation"]
+    # a bad value is one line naming the key
+    from processing.base.config import ConfigError
+    from processing.settings import load_settings
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("single_target: {phase_deviation_sigmas: -1}\n")
+    with pytest.raises(ConfigError) as e:
+        load_settings(bad)
+    assert "phase_deviation_sigmas" in str(e.value) and len(str(e.value).strip().splitlines()) == 1
     off = SingleTargetSettings(maximum_range_phase_deviation_deg=None)
     assert verdicts(**ok, phase_deviation_deg=dev[:, 2:].repeat(3, 1), range_phase_deviation_deg=rp,
                     settings=off).tolist() == [""] * n
