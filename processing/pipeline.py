@@ -492,8 +492,9 @@ class RecordChain:
         spacing = echo_spacing(ping, det["range_m"], det["azimuth_rad"], ~sidelobe,
                                azimuth_resolution_rad=detected.azimuth_resolution_rad) / nominal
         echo_length = length_m / nominal
-        # both planes' phase deviations against one limit, as a split-beam echosounder applies
-        # its one limit to both (a plane without a phase, NaN, is not tested)
+        # both planes' phase deviations against the one limit, as a split-beam echosounder
+        # applies it to both, each widened by its own noise (a plane without a phase, NaN, is
+        # not tested)
         both = np.stack([phase_dev, az_phase_dev])
         rule = verdicts(sidelobe=sidelobe, ts_comp_db=ts_c, echo_length=echo_length,
                         phase_deviation_deg=both, phase_noise_deg=noise[:2], compensation_db=comp,
