@@ -1,12 +1,11 @@
 """abacus' calibrated image as echopype calibrates a Simrad EK60: the documented conversion that
-lets echopype's ``open_converted``, ``repr``, ``combine_echodata`` and ``compute_Sv`` run on an
-abacus dataset.
+lets echopype's ``compute_Sv`` (and its MVBS) run on abacus' Sv.
 
-echopype calibrates only the sonars it knows (its ``compute_Sv`` looks the root's ``keywords`` up
-among EK60, EK80, AZFP, ...: ``KeyError 'ABACUS'`` otherwise), shows only the groups of its
-convention table (``repr`` of a file with /Processing: ``KeyError 'Processing'``) and combines
-files whose /Vendor_specific is identical (abacus keeps its per-ping ground truth there). The
-view writes what ABACUS measured in the EK60's terms instead:
+echopype opens abacus' own datasets, prints their repr and combines them (their /Processing
+products lie flat in /Vendor_specific in the file: processing/base/file_layout.py), but it
+calibrates only the sonars it knows (its ``compute_Sv`` looks the root's ``keywords`` up among
+EK60, EK80, AZFP, ...: ``KeyError 'ABACUS'`` otherwise) and appends no product of processing.
+The view writes what ABACUS measured in the EK60's terms instead:
 
 * one **channel per beam** of the image (subarray A by default), its samples the image's range
   cells, ``sample_interval`` = 2 Δr / c;
