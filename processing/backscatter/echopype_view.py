@@ -30,7 +30,7 @@ import datetime as _dt
 import numpy as np
 import xarray as xr
 
-from processing.base.contract import ELEMENT_GROUP, SV_GROUP
+from processing.base.contract import ELEMENT_GROUP, SONAR_GROUP, SV_GROUP
 from processing.base.dataset import DatasetError, as_tree, group_of, source_of
 
 __all__ = ["echopype_view", "VIEW_SONAR_MODEL"]
@@ -119,7 +119,7 @@ def echopype_view(tree, settings=None, *, image_group: str | None = None) -> xr.
          "beam_direction_y": ("channel", np.zeros(n_b)),
          "beam_direction_z": ("channel", np.cos(np.radians(angles))),
          "sample_interval": per(dt), "transmit_power": per(1.0), "transmit_duration_nominal": per(tau),
-         "transmit_bandwidth": per(float(tree["Sonar"].ds["transmit_bandwidth"].values)),
+         "transmit_bandwidth": per(float(group_of(tree, SONAR_GROUP)["transmit_bandwidth"].values)),
          "sample_time_offset": per(0.0), "channel_mode": per(0.0),
          "transmit_frequency_start": ("channel", np.full(n_b, f0)),
          "transmit_frequency_stop": ("channel", np.full(n_b, f0))},
