@@ -123,11 +123,13 @@ class TargetSet:
 
 
 def point_positions_sonar(points, pose: Pose) -> np.ndarray:
-    """Sonar-frame positions (m), shape (n, 3), of explicit points (:class:`TargetPoint`) for a
-    sonar at ``pose``."""
+    """Sonar-frame positions (m), shape (n, 3), of explicit points for a sonar at ``pose``:
+    :class:`TargetPoint` or point-target specs (whose ⟨r, θ, φ⟩ is converted here)."""
     out = np.zeros((len(points), 3))
     for i, t in enumerate(points):
-        if t.frame == "sonar":
+        if t.position_m is None:
+            out[i] = spherical_to_cartesian(t.range_m, t.azimuth, t.elevation)
+        elif t.frame == "sonar":
             out[i] = t.position_m
         else:
             out[i] = pose.to_sonar(np.asarray(t.position_m, float))
