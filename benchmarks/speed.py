@@ -410,15 +410,16 @@ if __name__ == "__main__":
 
 #: a fresh process that imports what the run imported and does nothing else: the interpreter's
 #: start, the imports and the modules' teardown at exit, which a command pays and a warm
-#: process does not
+#: process does not (it ends as the command does, its collector frozen: abacus.cli.app.main)
 _IMPORT_FLOOR = r"""
-import importlib, json, sys, warnings
+import gc, importlib, json, sys, warnings
 warnings.simplefilter("ignore")
 for name in json.loads(open(sys.argv[1]).read()):
     try:
         importlib.import_module(name)
     except Exception:
         pass
+gc.freeze()
 """
 
 #: interleaved rounds of the end-to-end comparison
