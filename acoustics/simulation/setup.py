@@ -16,12 +16,12 @@ the same file hit the cache.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from acoustics.frames import Pose
 from acoustics.medium import Medium
-from acoustics.paths.meshes import MeshSources, SceneMesh
 from acoustics.simulation.stages import StageLog
 from acoustics.sonar.beams import beamwidth
 from acoustics.sonar.build import Sonar, build_sonar
@@ -30,6 +30,9 @@ from acoustics.sonar.pulse import Pulse
 from acoustics.synthesis.arrivals import EchoModel
 from acoustics.targets.draw import TargetPoint, Targets
 from processing.base.counting_volume import CountingVolume, counting_volume, image_range_of
+
+if TYPE_CHECKING:       # meshes (trimesh, Embree) load only for a scene that has some
+    from acoustics.paths.meshes import MeshSources
 
 __all__ = ["Setup", "Sampling", "Noise", "Effects", "Reverberation", "Rays", "RunCache",
            "make_setup", "resolve_mesh_sources", "counting_volume_of"]
@@ -227,6 +230,7 @@ def _tx_beamwidths(key, tx, c, f0):
 
 def resolve_mesh_sources(scene) -> MeshSources:
     """The boundaries and mesh targets of a scene, with the folder their files are read from."""
+    from acoustics.paths.meshes import MeshSources
     src = scene.source_path
     return MeshSources(tuple(scene.boundaries), tuple(scene.targets.meshes),
                        None if src is None else src.parent, str(src or "<scene>"), scene.seed)
@@ -301,7 +305,7 @@ def make_setup(scene, log: StageLog | None = None) -> Setup:
         log = log if log is not None else StageLog()
         sources = resolve_mesh_sources(scene)
         with log.stage("rays_build"):
-            meshes: tuple[SceneMesh, ...] = tuple(scene_meshes(sources, sonar.pose))
+            meshes = tuple(scene_meshes(sources, sonar.pose))
         rays = Rays(sources, meshes, fx.ray_threads, fx.specular)
     sampling = Sampling(s.rate_hz, s.samples, s.time_offset_s, s.adc.quantize, s.adc.bits)
     noise = Noise(scene.noise.sigma_counts if scene.noise.enabled else 0.0,
