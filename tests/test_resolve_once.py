@@ -112,7 +112,7 @@ noise: {enabled: true}
 targets:
   points:
     - {frame: world, position_m: [14.0, 0.4, 5.0], velocity_m_s: [0.5, 0.2, 0.0]}
-    - {range_m: 12.0, azimuth_deg: -3.0, elevation_deg: 2.0, random_phase: true}
+    - {range_m: 12.0, azimuth_deg: -3.0, elevation_deg: -7.0, random_phase: true}
   populations:
     - {kind: uniform_cuboid, frame: world, x_m: [12, 16], y_m: [-1, 1], z_m: [4, 6], count: 4,
        redraw: false, swim: {speed_m_s: 0.8, heading_deg: 30},
