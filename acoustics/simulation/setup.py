@@ -1,6 +1,7 @@
 """The resolve step: a Scene becomes the frozen :class:`Setup` that the ping loop runs on.
 
-:func:`make_setup` is the one place below :func:`acoustics.simulate` that reads the Scene. It
+Below :func:`acoustics.simulate`, :func:`make_setup` reads the Scene for the ping loop (the
+writer, ``dataset.py``, reads it only to record it, and ``budget.py`` before the run). It
 builds the arrays, medium, pulse and echo model, and resolves every section the ping loop needs
 into small frozen values (:class:`Sampling`, :class:`Noise`, :class:`Effects`,
 :class:`Reverberation`, the targets' :class:`~acoustics.targets.draw.Targets`, the boundary and
