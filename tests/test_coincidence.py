@@ -79,3 +79,47 @@ def test_setting_is_validated_in_one_line():
     msg = str(e.value)
     assert "count.coincidence_correction" in msg and "\n" not in msg.strip()
     assert ProcessingSettings().count.coincidence_correction == "none"
+
+
+def test_counts_carry_the_corrected_count_only_when_asked():
+    """With "poisson", /Processing/Counts holds count_corrected (≥ count_after, equal where no
+    echo) and the density is its count over the volume; the default counts echoes alone."""
+    import warnings
+
+    import acoustics
+    import processing
+    from acoustics.scene import scene_from_text
+    scene = scene_from_text("""
+schema_version: 1
+name: coincidence
+seed: 1
+sonar:
+  pose: {position_m: [0.0, 0.0, 1.0], boresight: [0.0, 0.0, 1.0], receiver_axis: [0.0, 1.0, 0.0]}
+medium: {temperature_c: 10.0, salinity_psu: 35.0, depth_m: 20.0}
+noise: {enabled: false}
+targets:
+  populations:
+    - kind: school
+      center_m: [0.0, 0.0, 19.0]
+      semi_axes_m: [1.2, 2.0, 2.0]
+      density_per_m3: 2.0
+      nearest_neighbour_m: 0.25
+      backscatter: {model: swimbladder, length_m: 0.06, width_m: 0.01}
+pings: {count: 2, interval_s: 0.25}
+processing:
+  image: {range_m: [16.5, 21.5]}
+  count: {range_m: [17.5, 20.5]}
+""")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tree = acoustics.simulate(scene)
+        plain = processing.counts_of(processing.count(tree))
+        corr = processing.counts_of(processing.count(
+            tree, {"image": {"range_m": [16.5, 21.5]},
+                   "count": {"range_m": [17.5, 20.5], "coincidence_correction": "poisson"}}))
+    assert "count_corrected" not in plain
+    d, n = corr["count_after"].values, corr["count_corrected"].values
+    assert (d > 0).any()
+    assert np.all(n >= d) and np.all(n[d == 0] == 0) and np.all(n[d > 0] > d[d > 0])
+    assert np.allclose(corr["density_per_m3"].values * corr.attrs["counting_volume_m3"], n)
+    assert corr.attrs["coincidence_correction"] == "poisson"
