@@ -340,7 +340,9 @@ class RecordChain:
         Returns
         -------
         columns : dict of ndarray, each shape (n_pings,)
-            count_before, count_after, density_per_m3, occupied_density_per_m3 and, with
+            count_before, count_after, density_per_m3, occupied_density_per_m3, with
+            ``count.coincidence_correction`` "poisson" count_corrected (float: the expected
+            number of fish behind count_after, which the densities then use) and, with
             ground truth, true_in_volume, errors, hits/misses/false alarms
             (:func:`processing.detection.detect.score_all`); the values only interferometry
             gives are NaN without it.
@@ -355,10 +357,19 @@ class RecordChain:
         res = score_all(table, self.truth, volume, n, dr=detected.range_resolution_m,
                         dtheta=detected.azimuth_resolution_rad, gate=st.count.gate_cells,
                         unresolved=st.count.unresolved_cells, sidelobe=self.sidelobes(detected))
+        if st.count.coincidence_correction == "poisson" and detected.interferometric:
+            # fish sharing a resolution cell give one echo: the expected number behind the count
+            from processing.detection.coincidence import coincidence_coefficient, corrected_count
+            a = coincidence_coefficient(volume, range_resolution_m=detected.range_resolution_m,
+                                        azimuth_resolution_rad=detected.azimuth_resolution_rad,
+                                        unresolved_cells=st.count.unresolved_cells)
+            res["count_corrected"] = corrected_count(res["count_after"], a)
+            res["density_per_m3"] = res["count_corrected"] / volume.volume_m3
+        after = res.get("count_corrected", res["count_after"])
         # the density where the targets are: the range layer the run's located targets occupy
         layer = occupied_range(table["range_m"][table["in_volume"]], volume)
         occupied_m3 = volume.sector_volume_m3(layer) if layer is not None else 0.0
-        res["occupied_density_per_m3"] = (res["count_after"] / occupied_m3 if occupied_m3 > 0
+        res["occupied_density_per_m3"] = (after / occupied_m3 if occupied_m3 > 0
                                           else np.full(n, np.nan))
         if not detected.interferometric:
             # no elevation, so nothing is located in 3-D: "after interferometry" does not exist

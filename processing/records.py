@@ -372,6 +372,11 @@ def count(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.DataT
         units="m^-3", long_name="counted / the part of the counting volume the run's located "
         "targets occupy in range: the density where the targets are (processing/base/counting_volume.py)",
         nan_means="fewer than 2 located targets: no occupied layer")
+    if "count_corrected" in ds:
+        ds["count_corrected"].attrs.update(long_name="expected number of fish behind count_after, fish "
+                                           "sharing a resolution cell corrected for "
+                                           "(processing/detection/coincidence.py)")
+        ds.attrs["coincidence_correction"] = st.count.coincidence_correction
     for k in AFTER_KEYS:
         if k in ds:
             ds[k].attrs["nan_means"] = "no interferometry (normal or combined mode): no elevation"
@@ -433,7 +438,7 @@ def count_summary(tree: xr.DataTree) -> dict:
             if k in ("ping_index", "volume_m3"):
                 continue
             x = float(v[i])
-            row[k] = None if not np.isfinite(x) else (x if k.endswith("per_m3") else int(x))
+            row[k] = None if not np.isfinite(x) else (x if k.endswith("per_m3") or k == "count_corrected" else int(x))
         per.append(row)
 
     def stats(key):
@@ -445,7 +450,7 @@ def count_summary(tree: xr.DataTree) -> dict:
     summary = {"pings": n, "counting_volume_m3": c["volume_m3"],
                "occupied_range_m": list(ds.attrs.get("occupied_range_m", [])),
                "occupied_volume_m3": float(ds.attrs.get("occupied_volume_m3", 0.0))}
-    for key in ("count_before", "count_after", "density_per_m3", "occupied_density_per_m3", "true_in_volume",
+    for key in ("count_before", "count_after", "count_corrected", "density_per_m3", "occupied_density_per_m3", "true_in_volume",
                 "true_density_per_m3", "error_before", "error_after"):
         if key in c:
             summary[key] = stats(key)

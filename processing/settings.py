@@ -157,6 +157,14 @@ class CountSettings(ConfigModel):
     more than this (dB) above the ghost level its interferometric elevation predicts
     (|tan(k δ sin φ)| for a stagger ±δ), is its ghost and is not counted. 0: no ghost rule (the
     reference)."""
+    coincidence_correction: Literal["none", "poisson"] = "none"
+    """Correct the per-ping count for fish sharing a resolution cell (one echo for two;
+    processing/detection/coincidence.py): "poisson" adds ``count_corrected`` = the expected
+    number of fish behind the count, for fish spread uniformly (D = N e^(−aN), a from the
+    resolution cell of ``unresolved_cells`` and the volume), and the density uses it; "none"
+    counts echoes (the reference). The default "none" is the evidence of docs/validation.md's
+    "Counting against density": at the thesis' density the correction's gain in bias is smaller
+    than the noise it adds to each ping; it pays in denser schools."""
 
 
 class TrackSettings(ConfigModel):
