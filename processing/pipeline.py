@@ -33,7 +33,7 @@ FLAG_COLUMNS = ("in_span", "in_volume", "elevation_clipped")
 
 
 #: what only interferometry (the elevation) gives: NaN in normal and combined mode
-AFTER_KEYS = ("count_after", "density_per_m3", "occupied_density_per_m3", "error_after",
+AFTER_KEYS = ("count_after", "count_expected", "density_per_m3", "occupied_density_per_m3", "error_after",
               "hits_after", "misses_after", "false_alarms_after", "shared_cell_misses")
 
 
@@ -341,8 +341,11 @@ class RecordChain:
         -------
         columns : dict of ndarray, each shape (n_pings,)
             count_before, count_after, density_per_m3, occupied_density_per_m3, with
+            ``count.volume_edge`` "soft" count_expected (float: the expected number of fish
+            inside given the located elevations and their σ), with
             ``count.coincidence_correction`` "poisson" count_corrected (float: the expected
-            number of fish behind count_after, which the densities then use) and, with
+            number of fish behind count_after, or behind count_expected with the soft edge),
+            which the densities then use, and, with
             ground truth, true_in_volume, errors, hits/misses/false alarms
             (:func:`processing.detection.detect.score_all`); the values only interferometry
             gives are NaN without it.
@@ -354,18 +357,23 @@ class RecordChain:
         st = self.settings
         table, volume = detected.table, detected.volume
         n = len(self.ping_index)
+        sidelobe = self.sidelobes(detected)
         res = score_all(table, self.truth, volume, n, dr=detected.range_resolution_m,
                         dtheta=detected.azimuth_resolution_rad, gate=st.count.gate_cells,
-                        unresolved=st.count.unresolved_cells, sidelobe=self.sidelobes(detected))
+                        unresolved=st.count.unresolved_cells, sidelobe=sidelobe)
+        if st.count.volume_edge == "soft" and detected.interferometric:
+            # each detection counts with the probability that its fish lies inside
+            res["count_expected"] = self._expected_count(detected, ~sidelobe)
+            res["density_per_m3"] = res["count_expected"] / volume.volume_m3
         if st.count.coincidence_correction == "poisson" and detected.interferometric:
             # fish sharing a resolution cell give one echo: the expected number behind the count
             from processing.detection.coincidence import coincidence_coefficient, corrected_count
             a = coincidence_coefficient(volume, range_resolution_m=detected.range_resolution_m,
                                         azimuth_resolution_rad=detected.azimuth_resolution_rad,
                                         unresolved_cells=st.count.unresolved_cells)
-            res["count_corrected"] = corrected_count(res["count_after"], a)
+            res["count_corrected"] = corrected_count(res.get("count_expected", res["count_after"]), a)
             res["density_per_m3"] = res["count_corrected"] / volume.volume_m3
-        after = res.get("count_corrected", res["count_after"])
+        after = res.get("count_corrected", res.get("count_expected", res["count_after"]))
         # the density where the targets are: the range layer the run's located targets occupy
         layer = occupied_range(table["range_m"][table["in_volume"]], volume)
         occupied_m3 = volume.sector_volume_m3(layer) if layer is not None else 0.0
@@ -379,6 +387,23 @@ class RecordChain:
                     res[k] = np.full(n, np.nan)
         return res, {"occupied_range_m": list(layer) if layer is not None else [],
                      "occupied_volume_m3": occupied_m3}
+
+    def _expected_count(self, detected: Detected, counted) -> np.ndarray:
+        """Per ping, the expected number of fish inside the counting volume given the counted
+        detections' located elevations and their σ (``count.volume_edge: soft``,
+        :mod:`processing.detection.volume_edge`), shape (n_pings,) float."""
+        from processing.detection.volume_edge import baseline_of, elevation_sd_rad, soft_weights
+        table, n = detected.table, len(self.ping_index)
+        baseline = baseline_of(self.record)
+        if baseline is None or not detected.n:
+            return np.bincount(table["ping"][table["in_volume"] & counted], minlength=n).astype(float)
+        pos = np.stack([table[f"{a}_m"] for a in "xyz"], -1)
+        sd = elevation_sd_rad(table["snr_db"], table["azimuth_rad"], table["elevation_rad"],
+                              baseline_m=baseline, wavelength_m=self.record.wavelength_m,
+                              interference_db=self.settings.count.edge_interference_db)
+        w = soft_weights(detected.volume, pos, sd)
+        w = np.where(counted, w, 0.0)
+        return np.bincount(table["ping"], weights=w, minlength=n)
 
     def sidelobes(self, detected: Detected) -> np.ndarray:
         """Which detections the count takes for a stronger one's sidelobe or ghost

@@ -165,6 +165,16 @@ class CountSettings(ConfigModel):
     counts echoes (the reference). The default "none" is the evidence of docs/validation.md's
     "Counting against density": at the thesis' density the correction's gain in bias is smaller
     than the noise it adds to each ping; it pays in denser schools."""
+    volume_edge: Literal["hard", "soft"] = "hard"
+    """How a detection is tested against the counting volume's elevation faces
+    (processing/detection/volume_edge.py): "hard" counts it when its located position lies
+    inside (the reference, the thesis' counting); "soft" counts it with the probability that its
+    fish lies inside given its located elevation and that elevation's Cramér–Rao σ (from its
+    SNR, the baseline and the wavelength), and adds ``count_expected``, which the densities
+    then use."""
+    edge_interference_db: PositiveReal | None = Field(None, le=100)
+    """With ``volume_edge: soft``: a signal-to-interference ratio (dB) that caps the SNR behind σ
+    (a neighbour's echo, not the noise, limits a strong echo's elevation); null: noise only."""
 
 
 class TrackSettings(ConfigModel):
