@@ -125,8 +125,10 @@ def test_setting_is_validated_in_one_line():
 
 def test_counts_carry_the_expected_count_only_when_asked():
     """With "soft", /Processing/Counts holds count_expected and the density is its count over the
-    volume; a detection many σ inside the fan counts 1, so count_expected lies between the hard
-    counts of the volume narrowed and widened by 8 σ of the least precise counted detection."""
+    volume; a detection more than 8 of its own σ inside the fan's faces counts 1 and one more than
+    8 σ outside counts 0, so count_expected lies between the numbers of the first and of all but
+    the second; it is the sum of the counted (not sidelobe) detections' probabilities of lying
+    between the faces, σ from the record's own baseline and wavelength."""
     import warnings
 
     import acoustics
@@ -152,7 +154,7 @@ targets:
       nearest_neighbour_m: 0.25
       random_phase: true
       backscatter: {model: swimbladder, length_m: 0.06, width_m: 0.01, tilt_sd_deg: 10.0}
-pings: {count: 2, interval_s: 0.25}
+pings: {count: 1}
 processing:
   image: {range_m: [14.5, 23.5]}
   detect: {method: rayleigh, pfa_image: 1.0e-6, noise: {source: region, range_m: [14.5, 16.5], estimator: ml}}
@@ -178,12 +180,17 @@ processing:
     counted = ~chain.sidelobes(det)
     assert counted.any() and np.isfinite(sd[counted & t["in_span"]]).all()
     pos = np.stack([t[f"{a}_m"] for a in "xyz"], -1)
-    widest = float(np.max(sd[counted & t["in_span"]], initial=0.0))
-    bounds = []
-    for k in (-8, 8):
-        vol = CountingVolume(det.volume.range_m, det.volume.azimuth_halfwidth_rad,
-                             max(det.volume.elevation_halfwidth_rad + k * widest, 1e-9))
-        bounds.append(np.bincount(t["ping"][vol.contains(pos) & counted], minlength=expected.size))
+    span = det.volume.in_span(np.linalg.norm(pos, axis=1), np.arctan2(pos[:, 0], pos[:, 2])) & counted
+    el = np.abs(np.arctan2(pos[:, 1], np.hypot(pos[:, 0], pos[:, 2])))
+    edge = det.volume.elevation_halfwidth_rad
+    surely_in, maybe_in = span & (el < edge - 8 * sd), span & (el <= edge + 8 * sd)
+    assert (maybe_in & ~surely_in).any()      # some detection's side of the face is in doubt
+    low, high = (np.bincount(t["ping"][m], minlength=expected.size) for m in (surely_in, maybe_in))
     n = int(counted.sum())
-    assert np.all(expected >= bounds[0] - n * 1e-12) and np.all(expected <= bounds[1] + n * 1e-12)
+    assert np.all(expected >= low - n * 1e-12) and np.all(expected <= high + n * 1e-12)
+    # and it is the sum of the counted detections' probabilities of lying between the faces
+    from scipy.stats import norm
+    signed = np.arctan2(pos[:, 1], np.hypot(pos[:, 0], pos[:, 2]))
+    p_in = np.where(span, norm.cdf((edge - signed) / sd) - norm.cdf((-edge - signed) / sd), 0.0)
+    assert np.allclose(expected, np.bincount(t["ping"], weights=p_in, minlength=expected.size), atol=1e-9)
     assert np.array_equal(soft["count_after"].values, plain["count_after"].values)
