@@ -115,8 +115,8 @@ def simulate_ping():
         t0 = time.perf_counter()
         tree = simulate(scene, pings=range(10))
         best = min(best, time.perf_counter() - t0)
-    prov = tree["Provenance"].ds
-    rows = [[str(s), f"{t:.3f}"] for s, t in zip(prov["stage"].values, prov["stage_seconds"].values)]
+    from processing.base.dataset import stage_seconds
+    rows = [[str(s), f"{t:.3f}"] for s, t in stage_seconds(tree).items()]
     return ("## Simulating the default scene\n\n"
             f"`scenes/default.yaml` (100 targets, noise on), 10 pings: {best:.2f} s in all, "
             f"{best / 10 * 1e3:.0f} ms per ping. Stages of the last run:\n\n"
@@ -192,7 +192,7 @@ def rays():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
         setup = make_setup(load_scene(ROOT / "scenes" / "pelagic_floor_rock.yaml"))
-    floor_meshes = setup.ray_scene.meshes
+    floor_meshes = list(setup.rays.meshes)
     sphere = [SceneMesh("sphere", "target", "rigid", trimesh.creation.icosphere(6, 30.0), None, "s")]
     # rays: every direction from the centre of a closed sphere (all hit), and the transmitter's
     # fan over the rough floor and rock of the pelagic scene (most hit, some escape)
@@ -420,15 +420,16 @@ if __name__ == "__main__":
 
 #: a fresh process that imports what the run imported and does nothing else: the interpreter's
 #: start, the imports and the modules' teardown at exit, which a command pays and a warm
-#: process does not
+#: process does not (it ends as the command does, its collector frozen: abacus.cli.app.main)
 _IMPORT_FLOOR = r"""
-import importlib, json, sys, warnings
+import gc, importlib, json, sys, warnings
 warnings.simplefilter("ignore")
 for name in json.loads(open(sys.argv[1]).read()):
     try:
         importlib.import_module(name)
     except Exception:
         pass
+gc.freeze()
 """
 
 #: interleaved rounds of the end-to-end comparison
@@ -740,6 +741,7 @@ def motion():
     from pathlib import Path
 
     from acoustics.simulation.run import simulate
+    from processing.base.dataset import stage_seconds
     variants = [
         ("school of 250 fish, holding still", dict()),
         ("… swimming (turning together, 10 sub-steps)", dict(swim=True)),
@@ -762,9 +764,7 @@ def motion():
             dt = time.perf_counter() - t0
             if dt < best[i]:
                 best[i] = dt
-                prov = tree["Provenance"].ds
-                stages[i] = dict(zip((str(s) for s in prov["stage"].values),
-                                     (float(v) for v in prov["stage_seconds"].values)))
+                stages[i] = stage_seconds(tree)
     names = ["targets", "swimbladder_ts", "doppler", "platform_in_flight", "occlusion", "reverberation", "echoes"]
     rows = []
     for (label, _), b, st, ref in zip(variants, best, stages, [None, 0, 1, 1, None, 4, 5, 6]):
@@ -816,6 +816,7 @@ import json, resource, sys, time, warnings
 warnings.simplefilter("ignore")
 from acoustics import load_scene
 from acoustics.simulation.run import simulate
+from processing.base.dataset import stage_seconds
 scene = load_scene(sys.argv[1])
 pings, rounds = int(sys.argv[2]), int(sys.argv[3])
 simulate(scene, pings=range(2))                    # warm: kernels loaded, caches filled
@@ -825,9 +826,7 @@ for _ in range(rounds):
     tree = simulate(scene, pings=range(2, 2 + pings))
     wall = time.perf_counter() - t0
     if best is None or wall < best[0]:
-        prov = tree["Provenance"].ds
-        best = (wall, dict(zip((str(s) for s in prov["stage"].values),
-                               (float(v) for v in prov["stage_seconds"].values))))
+        best = (wall, stage_seconds(tree))
 print(json.dumps({"wall_s": best[0], "pings": pings, "stages_s": best[1],
                   "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
@@ -866,6 +865,7 @@ def _hard_limits(scene_path):
     from acoustics import SceneWarning, load_scene
     from acoustics.medium import Medium
     from acoustics.simulation.run import make_setup
+    from acoustics.simulation.setup import RunCache
     from acoustics.sonar.arrays import ElementArray
     from acoustics.sonar.build import preset_sonar
     from acoustics.sonar.pulse import Pulse
@@ -875,7 +875,8 @@ def _hard_limits(scene_path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
         setup = make_setup(load_scene(scene_path))
-    caster = setup.ray_scene.caster
+    rs = RunCache(setup).ray_scene
+    caster = rs.caster
     raw = rtcore_scene.EmbreeScene(robust=True)
     TriangleMesh(scene=raw, vertices=caster.vertices.astype(np.float32),
                  indices=caster.faces.astype(np.int32))
@@ -884,7 +885,7 @@ def _hard_limits(scene_path):
     az = rng.uniform(-np.radians(12), np.radians(12), n)
     el = rng.uniform(-np.radians(30), np.radians(30), n)
     d = np.column_stack([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
-    o32 = np.broadcast_to(setup.ray_scene.tx_center, d.shape).astype(np.float32)
+    o32 = np.broadcast_to(rs.tx_center, d.shape).astype(np.float32)
     d32 = d.astype(np.float32)
     raw.run(o32[:1000], d32[:1000], query="INTERSECT", output=1)
     pool = ThreadPoolExecutor(2)
@@ -1157,17 +1158,18 @@ import json, resource, sys, time, warnings
 warnings.simplefilter("ignore")
 from acoustics.scene import scene_from_text
 from acoustics.simulation.ping import simulate_ping
-from acoustics.simulation.setup import make_setup
+from acoustics.simulation.setup import RunCache, make_setup
 from acoustics.simulation.stages import StageLog
 scene = scene_from_text(open(sys.argv[1]).read())
 pings = int(sys.argv[2])
 t0 = time.perf_counter()
 setup = make_setup(scene)
-simulate_ping(scene, setup, 0)      # warm, on the run's own setup: kernels, the floor's normals and blocks
+cache = RunCache(setup)
+simulate_ping(setup, 0, cache=cache)  # warm, on the run's own cache: kernels, the floor's normals and blocks
 t_first = time.perf_counter() - t0
 log = StageLog()
 for p in range(1, 1 + pings):       # what simulate does per ping
-    simulate_ping(scene, setup, p, log=log)
+    simulate_ping(setup, p, cache=cache, log=log)
 st = log.seconds
 print(json.dumps({"ping_s": sum(st.values()) / pings, "first_s": t_first, "stages_s": st,
                   "pings": pings,

@@ -56,18 +56,20 @@ def provenance_dataset(scene, seed: int, log, rays_cast: dict | None = None) -> 
     Returns
     -------
     xarray.Dataset
-        ``stage_seconds`` (s) and ``stage_calls`` along ``stage``; the rest as attributes.
+        ``source_filenames`` along ``filenames``; the rest, the stages' wall times (s) and calls
+        included (``stage_seconds_json``, ``stage_calls_json``), as attributes: two runs'
+        timings differ by nature, and echopype combines files whose variables agree.
     """
     names = log.names
     return build_group(
         PROVENANCE_GROUP,
-        {"stage_seconds": np.array([log.seconds[k] for k in names]),
-         "stage_calls": np.array([log.calls[k] for k in names]),
-         "stage": np.array(names, dtype=str),
-         "source_filenames": [str(scene.source_path or scene.name)], "filenames": [0]},
+        {"source_filenames": [str(scene.source_path or scene.name)], "filenames": [0]},
         attrs={"scene_text": scene.resolved_text(), "scene_sha256": scene.sha256(),
                "scene_file": str(scene.source_path or ""), "seed": int(seed),
-               "stages_run": ",".join(names), "versions": json.dumps(versions()),
+               "stages_run": ",".join(names),
+               "stage_seconds_json": json.dumps({k: float(log.seconds[k]) for k in names}),
+               "stage_calls_json": json.dumps({k: int(log.calls[k]) for k in names}),
+               "versions": json.dumps(versions()),
                "rays_cast_json": json.dumps(rays_cast or {}),
                "command": " ".join(sys.argv),
                # what echopype's Provenance holds (combine_echodata reads it)
@@ -83,7 +85,7 @@ def _ping_times(scene, pings):
 
 
 def build_tree(scene, setup, pings, samples, clipped, truth, log, seed, *,
-               arrivals=None) -> xr.DataTree:
+               arrivals=None, rays=None) -> xr.DataTree:
     """The DataTree of one simulation run, every group made by the contract's builder
     (processing/base/contract.py has the layout).
 
@@ -106,6 +108,8 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed, *,
     arrivals : list of dict, optional
         Each ping's arrivals table (acoustics/simulation/arrival_table.py): written as
         /Vendor_specific/Arrivals.
+    rays : dict, optional
+        Rays cast per purpose (:func:`rays_cast` of the run's cache).
 
     Returns
     -------
@@ -178,7 +182,7 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed, *,
 
     truth_ds = _truth(setup, pings, ping_time, truth)
     groups = {ROOT_GROUP: root, ENVIRONMENT_GROUP: env, PLATFORM_GROUP: platform_ds,
-              PROVENANCE_GROUP: provenance_dataset(scene, seed, log, rays_cast(setup)),
+              PROVENANCE_GROUP: provenance_dataset(scene, seed, log, rays),
               SONAR_GROUP: sonar_ds, ELEMENT_GROUP: eg, TRUTH_GROUP: truth_ds}
     if arrivals is not None:
         groups[ARRIVALS_GROUP] = _arrivals(scene, setup, arrivals)
@@ -299,9 +303,10 @@ def beam_group(scene, setup, pings, ping_time, samples, clipped, chan_names, *, 
                "conversion_equation_type": "none: samples are complex baseband in ADC counts"})
 
 
-def rays_cast(setup) -> dict:
-    """Rays cast per purpose in a run (empty without meshes)."""
-    rs = setup.ray_scene
+def rays_cast(cache) -> dict:
+    """Rays cast per purpose in a run (its :class:`~acoustics.simulation.setup.RunCache`;
+    empty without meshes)."""
+    rs = cache.ray_scene
     return dict(rs.caster.rays_cast) if rs is not None else {}
 
 
@@ -328,7 +333,6 @@ def _truth(setup, pings, ping_time, truth) -> xr.Dataset:
     inside = volume.contains(ps)
     with np.errstate(divide="ignore"):
         ts = np.where(rho > 0, 20 * np.log10(np.where(rho > 0, rho, 1.0)), -np.inf)
-    per_ping_in = np.array([int(v.sum()) for v in np.split(inside, np.cumsum(n)[:-1])]) if truth else np.zeros(0, int)
     return build_group(
         TRUTH_GROUP,
         {"target_ping_index": ping_of,
@@ -341,11 +345,10 @@ def _truth(setup, pings, ping_time, truth) -> xr.Dataset:
          "target_velocity_world_z": vel[:, 2],
          "target_in_counting_volume": inside.astype(np.int8),
          "target_shadowed": shd.astype(np.int8),
-         "truth_count_total": np.asarray(n, np.int64),
-         "truth_count_in_volume": per_ping_in.astype(np.int64),
-         "ping_time": ping_time},
+         "ping_time": np.repeat(np.asarray(ping_time), n)},
         attrs={"counting_volume": "transmitter 3 dB beam (azimuth, elevation) x image range limits",
-               "counting_range_m": list(volume.range_m),
+               "counting_range_min_m": float(volume.range_m[0]),
+               "counting_range_max_m": float(volume.range_m[1]),
                "counting_azimuth_halfwidth_rad": volume.azimuth_halfwidth_rad,
                "counting_elevation_halfwidth_rad": volume.elevation_halfwidth_rad,
                "counting_volume_m3": volume.volume_m3})
