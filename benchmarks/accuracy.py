@@ -916,12 +916,13 @@ def specular_search():
     from acoustics import SceneWarning
     from acoustics.scene import scene_from_text
     from acoustics.simulation.ping import simulate_ping
-    from acoustics.simulation.setup import make_setup
+    from acoustics.simulation.setup import RunCache, make_setup
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
         sc = scene_from_text((ROOT / "scenes" / "hard_survey.yaml").read_text())
     setup = make_setup(sc)
-    simulate_ping(sc, setup, 0)
+    cache = RunCache(setup)
+    simulate_ping(setup, 0, cache=cache)
     calls, real = [], spm.specular_points
 
     def spy(*args, **kw):
@@ -930,7 +931,7 @@ def specular_search():
 
     spm.specular_points = spy
     try:
-        simulate_ping(sc, setup, 1)
+        simulate_ping(setup, 1, cache=cache)
     finally:
         spm.specular_points = real
     names = ["transmit leg, floor", "transmit leg, sea", "receive leg, floor", "receive leg, sea"]
