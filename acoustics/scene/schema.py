@@ -166,6 +166,19 @@ class ArrivalsSpec(ConfigModel):
     """Keep arrivals no more than this far (dB) below the ping's strongest; null keeps all."""
 
 
+class FloorTilesSpec(ConfigModel):
+    """A generated floor (``rough_floor``) streamed in tiles through the ray caster and the
+    specular search, the built tiles' memory bounded (acoustics/paths/tiles.py;
+    docs/scenes.md, "Large floors"). Off unless ``memory_mb`` is set."""
+
+    memory_mb: PositiveReal | None = Field(None, ge=1.0, le=1e7)
+    """Most memory (MB) the built tiles of a floor hold at once; the least recently used are
+    evicted. null: every floor is built whole (and a ``rough_floor`` is limited to 4 million
+    vertices)."""
+    tile_vertices: PositiveCount = Field(513, ge=3, le=8193)
+    """Vertices along a tile's side (a tile holds 2 (n − 1)² facets)."""
+
+
 class EffectsSpec(ConfigModel):
     """Fidelity settings and switches of the forward model (docs/accuracy.md)."""
 
@@ -217,6 +230,7 @@ class EffectsSpec(ConfigModel):
     roll (docs/accuracy.md, "within-ping motion")."""
     ray_threads: PositiveCount | None = None
     """Threads for ray batches (default: every core)."""
+    floor_tiles: FloorTilesSpec = FloorTilesSpec()
     arrivals: ArrivalsSpec = ArrivalsSpec()
     """Per-arrival ground truth (off: the run pays nothing for it)."""
 
