@@ -171,7 +171,7 @@ class FloorTilesSpec(ConfigModel):
     specular search, the built tiles' memory bounded (acoustics/paths/tiles.py;
     docs/scenes.md, "Large floors"). Off unless ``memory_mb`` is set."""
 
-    memory_mb: PositiveReal | None = Field(None, ge=1.0, le=1e7)
+    memory_mb: PositiveReal | None = Field(None, ge=0.01, le=1e7)
     """Most memory (MB) the built tiles of a floor hold at once; the least recently used are
     evicted. null: every floor is built whole (and a ``rough_floor`` is limited to 4 million
     vertices)."""
