@@ -44,11 +44,11 @@ _NOISE_BLOCK = 256
 _KERNEL_REACH = 4.0
 #: the "ping" of the noise seeds (a floor is the same for every ping)
 _FLOOR_PING = 2**31 - 3
-#: bytes a facet of a built tile holds: its vertices (float64, float32 for Embree), vertex
-#: normals, faces (int64, int32 for Embree), face planes (4 float64) and Embree's BVH
-#: (≈ 90 B a triangle, measured: benchmarks/speed.py, scaling), with the specular search's
-#: blocks of facets (≈ 60 B)
-_FACET_BYTES = 24 / 2 + 12 / 2 + 24 / 2 + 24 + 12 + 32 + 90 + 60
+#: bytes a facet of a built tile holds: its vertices and vertex normals (float64, float32 for
+#: Embree), faces (int64, int32 for Embree), face planes and Embree's BVH, 166 B measured
+#: (RSS of 12 tiles of 131k facets, queried); and the specular search's blocks of facets, which
+#: it keeps for the last 4 meshes searched (acoustics/paths/specular.py), 217 B measured
+_FACET_BYTES = 170.0 + 220.0
 
 
 class TileMemoryError(ValueError):
