@@ -220,6 +220,14 @@ class RayCaster:
         self.rays_cast: dict[str, int] = {}
         self._buffers = None
 
+    def first_face(self, mesh_index: int) -> int:
+        """The caster's number of a mesh's first facet (facet k of the mesh is this + k)."""
+        for i, _, start in self._tiled:
+            if i == mesh_index:
+                return start
+        own = np.flatnonzero(self.face_mesh == mesh_index)
+        return int(own[0]) if own.size else 0
+
     def _build_part(self, mesh_idx, robust, still):
         """(Embree scene, global face index of each of its faces, its meshes, still) for the
         meshes ``mesh_idx``."""
