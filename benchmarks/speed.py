@@ -1133,6 +1133,7 @@ tiles = None
 if is_tiled(floor):
     tiles = {"n_tiles": floor.n_tiles, "builds_per_ping": (floor.builds - builds0) / pings,
              "peak_cached_mb": floor.peak_cached_bytes / 1e6, "memory_mb": floor.memory_bytes / 1e6,
+             "reserve_mb": floor.reserve_bytes / 1e6,
              "tile_facets": int(floor.face_start[1])}
 print(json.dumps({"ping_s": sum(st.values()) / pings, "first_s": t_first, "stages_s": st,
                   "pings": pings, "tiles": tiles,
@@ -1254,11 +1255,13 @@ def scaling():
                 f"{_SCALE_TILE_MB}}}` the {tiled[-1][0]:,}-facet floor is never held whole: "
                 f"{tl['n_tiles']} tiles of {tl['tile_facets']:,} facets (`tile_vertices` 513) are "
                 f"built as the rays and the specular search reach them and evicted least recently "
-                f"used; the built tiles peaked at {tl['peak_cached_mb']:.0f} MB (the setting: "
-                f"{tl['memory_mb']:.0f} MB), {tl['builds_per_ping']:.0f} tiles were built again "
-                f"per ping, and the process peaked at {big['peak_rss_mb']:,.0f} MB — the setting, "
-                f"the sea, the school, the synthesis and the runtime — against ≈ 9.4 GB "
-                f"for this floor held whole (0.94 kB a facet, the whole-floor rows). ")
+                f"used; the built tiles peaked at {tl['peak_cached_mb']:.0f} MB and "
+                f"{tl['reserve_mb']:.0f} MB were reserved for the specular search's blocks of the "
+                f"last 4 tiles it searched (together at most the setting, {tl['memory_mb']:.0f} MB), "
+                f"{tl['builds_per_ping']:.0f} tiles were built again per ping, and the process "
+                f"peaked at {big['peak_rss_mb']:,.0f} MB (the floor, the sea, the school, the "
+                f"synthesis and the runtime; the budget's estimate is in the table) against "
+                f"≈ 9.4 GB for this floor held whole (0.94 kB a facet, the whole-floor rows). ")
     else:
         note = "**The 10⁷-facet tiled point did not finish (the table says why).** "
     return ("## The hard survey at scale: facets and fish\n\n"
@@ -1282,8 +1285,8 @@ def scaling():
             + note
             + "A whole floor's memory grows with its facets (≈ 0.94 kB a facet: the mesh, the "
               "caster's planes, Embree's BVH, the specular search's normals and blocks); a tiled "
-              "floor's is bounded by the setting (each built tile ≈ 390 B a facet with its search "
-              "blocks, measured), whatever the floor's size. Time grows with the specular search "
+              "floor's is bounded by the setting (a built tile ≈ 170 B a facet, the search's blocks "
+              "of the last 4 tiles ≈ 270 B a facet, measured), whatever the floor's size. Time grows with the specular search "
               "(targets x facets, culled) more than with the rays; in tiles it grows too with "
               "the tiles built again each ping when the setting holds fewer than the fan reaches. "
               "The fish cost the search linearly once they outnumber the fixed costs.")

@@ -389,9 +389,12 @@ class RayCaster:
                 _refine(ids, np.ascontiguousarray(o[rows]), np.ascontiguousarray(d[rows]),
                         tile.face_plane, np.full(tile.faces.shape[0], mi, np.int32),
                         np.ascontiguousarray(reach[rows]), f_k, m_k, t_k, p_k)
-                near = (f_k >= 0) & (t_k < t[rows])
+                g_k = start + tile.face_start + f_k
+                # a tie (a ray through two tiles' shared edge) to the lower facet number: the
+                # same hit in any order of the tiles
+                near = (f_k >= 0) & ((t_k < t[rows]) | ((t_k == t[rows]) & (g_k < face[rows])))
                 r = rows[near]
-                face[r] = start + tile.face_start + f_k[near]
+                face[r] = g_k[near]
                 mesh[r] = mi
                 t[r] = t_k[near]
                 point[r] = p_k[near]

@@ -34,7 +34,7 @@ import numpy as np
 
 from acoustics.seeds import ping_rng
 
-__all__ = ["FloorTiles", "Tile", "TileMemoryError", "tile_bytes", "is_tiled"]
+__all__ = ["FloorTiles", "Tile", "TileMemoryError", "tile_bytes", "search_reserve_bytes", "is_tiled"]
 
 #: most vertices of a tiled floor (its set-up pass over the heights takes ≈ 1 s per 10⁶)
 MAX_TILED_VERTICES = 10**8
@@ -45,10 +45,15 @@ _KERNEL_REACH = 4.0
 #: the "ping" of the noise seeds (a floor is the same for every ping)
 _FLOOR_PING = 2**31 - 3
 #: bytes a facet of a built tile holds: its vertices and vertex normals (float64, float32 for
-#: Embree), faces (int64, int32 for Embree), face planes and Embree's BVH, 166 B measured
-#: (RSS of 12 tiles of 131k facets, queried); and the specular search's blocks of facets, which
-#: it keeps for the last 4 meshes searched (acoustics/paths/specular.py), 217 B measured
-_FACET_BYTES = 170.0 + 220.0
+#: Embree), faces (int64, int32 for Embree), face planes and Embree's BVH (166 B measured: RSS
+#: of 12 queried tiles of 131k facets)
+_FACET_BYTES = 170.0
+#: bytes a facet of the meshes the specular search keeps its blocks of facets for (the last
+#: 4 it searched, acoustics/paths/specular.py): the blocks (217 B measured) and the tile's
+#: arrays they keep alive once the tile is evicted
+_SEARCH_FACET_BYTES = 270.0
+#: meshes whose blocks the specular search keeps
+_SEARCH_KEPT = 4
 
 
 class TileMemoryError(ValueError):
@@ -63,6 +68,12 @@ def is_tiled(mesh) -> bool:
 def tile_bytes(tile_vertices: int) -> float:
     """Memory (bytes) of one built tile of ``tile_vertices`` a side."""
     return 2.0 * (tile_vertices - 1) ** 2 * _FACET_BYTES
+
+
+def search_reserve_bytes(tile_facets: float, n_tiles: int) -> float:
+    """Memory (bytes) the specular search's blocks of the last tiles it searched hold, which a
+    floor's setting reserves before it holds tiles."""
+    return min(_SEARCH_KEPT, int(n_tiles)) * float(tile_facets) * _SEARCH_FACET_BYTES
 
 
 def _kernel(resolution_m: float, correlation_m: float) -> np.ndarray:
@@ -197,11 +208,14 @@ class FloorTiles:
         self.face_start = np.concatenate([[0], np.cumsum(counts)])
         self.n_faces = int(self.face_start[-1])
         biggest = tile_bytes_of(int(counts.max()))
-        if biggest > self.memory_bytes:
+        self.reserve_bytes = search_reserve_bytes(int(counts.max()), self.n_tiles)
+        if biggest + self.reserve_bytes > self.memory_bytes:
+            least = biggest + self.reserve_bytes
             raise TileMemoryError(
                 f"effects.floor_tiles.memory_mb = {memory_mb:g} cannot hold one tile of {key} "
-                f"(≈ {biggest / 1e6:.0f} MB at tile_vertices {t}): raise memory_mb to at least "
-                f"{math.ceil(biggest / 1e6)} or lower effects.floor_tiles.tile_vertices")
+                f"(≈ {least / 1e6:.3g} MB at tile_vertices {t}, with the specular search's blocks "
+                f"of the last {min(_SEARCH_KEPT, self.n_tiles)} tiles searched): raise memory_mb "
+                f"to at least {least / 1e6:.3g} or lower effects.floor_tiles.tile_vertices")
         self._kernel = _kernel(res, spec.correlation_length_m) if spec.rms_height_m > 0 else None
         self.cache: OrderedDict[int, Tile] = OrderedDict()
         self.cached_bytes = 0.0
@@ -298,7 +312,7 @@ class FloorTiles:
             self.cache.move_to_end(k)
             return t
         need = tile_bytes_of(int(self.face_start[k + 1] - self.face_start[k]))
-        while self.cache and self.cached_bytes + need > self.memory_bytes:
+        while self.cache and self.cached_bytes + need + self.reserve_bytes > self.memory_bytes:
             _, old = self.cache.popitem(last=False)
             self.cached_bytes -= old.nbytes
         t = self._build(k)
@@ -308,6 +322,17 @@ class FloorTiles:
         return t
 
     # ---------------------------------------------------------------- queries
+    def visit_order(self, tiles) -> list:
+        """``tiles`` (indices) in the order to visit them: those built, most recently used
+        first, then the others in index order — a scan that follows the previous one's tail
+        finds it still built (a least-recently-used cache scanned in one order every time
+        misses on every tile once it holds fewer than the scan). What a query returns does not
+        depend on the order."""
+        want = set(int(k) for k in tiles)
+        held = [k for k in reversed(self.cache) if k in want]
+        kept = set(held)
+        return held + [int(k) for k in tiles if int(k) not in kept]
+
     def rays_per_tile(self, origins, directions, reach, pad: float):
         """[(tile, ray indices)] of the tiles each ray (unit directions, lengths ``reach``, inf
         for unbounded) may meet, boxes padded by ``pad`` (m); tiles in index order."""
@@ -323,7 +348,7 @@ class FloorTiles:
                 break
             cap = k
         edges = np.concatenate([[0], np.cumsum(counts)])
-        return [(t, idx[edges[t]:edges[t + 1]]) for t in np.flatnonzero(counts)]
+        return [(t, idx[edges[t]:edges[t + 1]]) for t in self.visit_order(np.flatnonzero(counts))]
 
     def tiles_in_window(self, window) -> np.ndarray:
         """Tiles whose bounding sphere reaches into an angular window (origin (3,), rotation
@@ -353,7 +378,7 @@ class FloorTiles:
         edge) kept once, as the whole mesh's search keeps it."""
         from acoustics.paths.specular import SpecularPoints, specular_points
         parts = []
-        for k in self.tiles_in_window(window):
+        for k in self.visit_order(self.tiles_in_window(window)):
             t = self.tile(k)
             sp = specular_points(t.vertices, t.faces, t.normals, sources_m, receivers_m,
                                  window=window, **kw)
@@ -367,7 +392,8 @@ class FloorTiles:
         cols = {n: np.concatenate([getattr(sp, n) if n != "face" else f for sp, f, _ in parts])
                 for n in names}
         scale = np.concatenate([s for _, _, s in parts])
-        order = np.lexsort((cols["source_range_m"] + cols["receiver_range_m"], cols["pair"]))
+        # the facet last: the same rows in any visiting order
+        order = np.lexsort((cols["face"], cols["source_range_m"] + cols["receiver_range_m"], cols["pair"]))
         pair, x = cols["pair"][order], cols["point_m"][order]
         keep = []
         for i in range(order.size):

@@ -104,9 +104,11 @@ def tiled_floor_bytes(scene, spec) -> float | None:
     shape = spec.mesh
     if tiles.memory_mb is None or getattr(shape, "shape", "") != "rough_floor":
         return None
-    from acoustics.paths.tiles import tile_bytes
+    from acoustics.paths.tiles import search_reserve_bytes, tile_bytes
     t = int(tiles.tile_vertices)
-    whole = mesh_faces(spec) * tile_bytes(t) / (2.0 * (t - 1) ** 2)
+    tile_faces = 2.0 * (t - 1) ** 2
+    n = mesh_faces(spec)
+    whole = n * tile_bytes(t) / tile_faces + search_reserve_bytes(min(tile_faces, n), math.ceil(n / tile_faces))
     half = math.ceil(4.0 * shape.correlation_length_m / shape.resolution_m) if shape.rms_height_m > 0 else 0
     build = (t + 2) ** 2 * 3 * 8 * 4 + (t + 2 * half) ** 2 * 8 * 3
     return _finite(min(float(tiles.memory_mb) * 1e6, whole) + build)
