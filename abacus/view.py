@@ -71,7 +71,7 @@ def _draw_motion(plotter, scene, setup, targets, max_tracks=300):
     ids = targets.target_id[np.any(targets.velocity_world_m_s != 0, axis=1)][:max_tracks]
     tracks = {i: [] for i in ids.tolist()}
     for p in pings:
-        t = draw_targets(scene, p, setup.pose_at(p))
+        t = draw_targets(setup.targets, p, setup.pose_at(p))
         for i, xyz in zip(t.target_id.tolist(), t.position_world_m):
             if i in tracks:
                 tracks[i].append(xyz)
@@ -186,7 +186,7 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     from processing.base.extras import require
     pv = require("pyvista", "abacus view")
 
-    from acoustics.simulation.setup import counting_volume_of, make_setup
+    from acoustics.simulation.setup import RunCache, counting_volume_of, make_setup
     from acoustics.targets.draw import draw_targets
 
     off = not (interactive and (os.environ.get("DISPLAY") or os.name == "nt"))
@@ -197,7 +197,7 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     with _window_probe_quiet(off):
         plotter = pv.Plotter(off_screen=off, window_size=list(window_size))
     plotter.set_background("white")
-    rs, view = setup.ray_scene_at(scene, pose)
+    rs, view = RunCache(setup).ray_scene_at(pose)
     if rs is not None:
         rs.advance(ping * setup.interval_s)        # the sea as this ping sees it
     colours = {"surface": "lightblue", "floor": "tan", "obstacle": "dimgray", "rigid": "gold",
@@ -211,8 +211,8 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
             plotter.add_mesh(pv.PolyData(v, faces), color=colours.get(sm.role, "gray"),
                              opacity=opacity, ambient=0.55, diffuse=0.5, specular=0.0,
                              label=sm.name)
-        if scene.effects.reverberation.enabled:
-            rs.reverberation(scene, setup, ping, scene.seed, view)
+        if setup.effects.reverberation is not None:
+            rs.reverberation(setup, ping, setup.seed, view)
             if len(rs.hit_sample):
                 plotter.add_points(to_world(rs.hit_sample), color="saddlebrown", point_size=3,
                                    render_points_as_spheres=True, label="ray hits (sample)")
@@ -239,7 +239,7 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     plotter.add_mesh(vol, color="green", opacity=0.25, label="counting volume")
     plotter.add_mesh(vol.extract_feature_edges(), color="darkgreen", line_width=2)
     # targets of one ping
-    t = draw_targets(scene, ping, pose)
+    t = draw_targets(setup.targets, ping, pose)
     if len(t):
         inside = counting_volume_of(setup, t.position_sonar_m)
         shadow = rs.shadowed(t.position_sonar_m, view) if rs is not None else np.zeros(len(t), bool)

@@ -854,7 +854,7 @@ def specular_fan():
     from acoustics import SceneWarning
     from acoustics.scene import scene_from_text
     from acoustics.simulation.ping import simulate_ping
-    from acoustics.simulation.setup import make_setup
+    from acoustics.simulation.setup import RunCache, make_setup
     from acoustics.simulation.stages import StageLog
     base = (ROOT / "scenes" / "hard_survey.yaml").read_text()
     # noise and Doppler off: the records differ by their paths alone
@@ -868,10 +868,11 @@ def specular_fan():
             warnings.simplefilter("ignore", SceneWarning)
             sc = scene_from_text(text)
         setup = make_setup(sc)
-        simulate_ping(sc, setup, 2)
+        cache = RunCache(setup)
+        simulate_ping(setup, 2, cache=cache)
         log = StageLog()
         t0 = time.perf_counter()
-        x, _, _ = simulate_ping(sc, setup, 3, log=log)
+        x, _, _ = simulate_ping(setup, 3, cache=cache, log=log)
         t = time.perf_counter() - t0
         out[level] = (x, log.seconds.get("multipath", 0.0), t)
     ref = out[None][0]

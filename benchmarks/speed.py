@@ -182,7 +182,7 @@ def rays():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
         setup = make_setup(load_scene(ROOT / "scenes" / "pelagic_floor_rock.yaml"))
-    floor_meshes = setup.ray_scene.meshes
+    floor_meshes = list(setup.rays.meshes)
     sphere = [SceneMesh("sphere", "target", "rigid", trimesh.creation.icosphere(6, 30.0), None, "s")]
     # rays: every direction from the centre of a closed sphere (all hit), and the transmitter's
     # fan over the rough floor and rock of the pelagic scene (most hit, some escape)
@@ -410,15 +410,16 @@ if __name__ == "__main__":
 
 #: a fresh process that imports what the run imported and does nothing else: the interpreter's
 #: start, the imports and the modules' teardown at exit, which a command pays and a warm
-#: process does not
+#: process does not (it ends as the command does, its collector frozen: abacus.cli.app.main)
 _IMPORT_FLOOR = r"""
-import importlib, json, sys, warnings
+import gc, importlib, json, sys, warnings
 warnings.simplefilter("ignore")
 for name in json.loads(open(sys.argv[1]).read()):
     try:
         importlib.import_module(name)
     except Exception:
         pass
+gc.freeze()
 """
 
 #: interleaved rounds of the end-to-end comparison
@@ -856,6 +857,7 @@ def _hard_limits(scene_path):
     from acoustics import SceneWarning, load_scene
     from acoustics.medium import Medium
     from acoustics.simulation.run import make_setup
+    from acoustics.simulation.setup import RunCache
     from acoustics.sonar.arrays import ElementArray
     from acoustics.sonar.build import preset_sonar
     from acoustics.sonar.pulse import Pulse
@@ -865,7 +867,8 @@ def _hard_limits(scene_path):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
         setup = make_setup(load_scene(scene_path))
-    caster = setup.ray_scene.caster
+    rs = RunCache(setup).ray_scene
+    caster = rs.caster
     raw = rtcore_scene.EmbreeScene(robust=True)
     TriangleMesh(scene=raw, vertices=caster.vertices.astype(np.float32),
                  indices=caster.faces.astype(np.int32))
@@ -874,7 +877,7 @@ def _hard_limits(scene_path):
     az = rng.uniform(-np.radians(12), np.radians(12), n)
     el = rng.uniform(-np.radians(30), np.radians(30), n)
     d = np.column_stack([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
-    o32 = np.broadcast_to(setup.ray_scene.tx_center, d.shape).astype(np.float32)
+    o32 = np.broadcast_to(rs.tx_center, d.shape).astype(np.float32)
     d32 = d.astype(np.float32)
     raw.run(o32[:1000], d32[:1000], query="INTERSECT", output=1)
     pool = ThreadPoolExecutor(2)
@@ -1115,19 +1118,20 @@ warnings.simplefilter("ignore")
 from acoustics.paths.tiles import is_tiled
 from acoustics.scene import scene_from_text
 from acoustics.simulation.ping import simulate_ping
-from acoustics.simulation.setup import make_setup
+from acoustics.simulation.setup import RunCache, make_setup
 from acoustics.simulation.stages import StageLog
 scene = scene_from_text(open(sys.argv[1]).read())
 pings = int(sys.argv[2])
 t0 = time.perf_counter()
 setup = make_setup(scene)
-simulate_ping(scene, setup, 0)      # warm, on the run's own setup: kernels, the floor's normals and blocks
+cache = RunCache(setup)
+simulate_ping(setup, 0, cache=cache)  # warm, on the run's own cache: kernels, the floor's normals and blocks
 t_first = time.perf_counter() - t0
 log = StageLog()
-floor = setup.ray_scene.meshes[0].mesh if setup.ray_scene is not None else None
+floor = cache.ray_scene.meshes[0].mesh if cache.ray_scene is not None else None
 builds0 = floor.builds if is_tiled(floor) else 0
 for p in range(1, 1 + pings):       # what simulate does per ping
-    simulate_ping(scene, setup, p, log=log)
+    simulate_ping(setup, p, cache=cache, log=log)
 st = log.seconds
 tiles = None
 if is_tiled(floor):

@@ -315,7 +315,8 @@ def raytraced():
     world = np.array([20.0, 0.0, 4.0])
     p = pose.to_sonar(world[None])[0]
     img = pose.to_sonar(_mirror(world, 0.0)[None])[0]
-    vs = setup.ray_scene.multipath(p[None], np.ones(1), 1)
+    from acoustics.simulation.setup import RunCache
+    vs = RunCache(setup).ray_scene.multipath(p[None], np.ones(1), 1)
     tau, amp = arrivals(setup.model, vs.p_tx, vs.strength, receive_positions_m=vs.p_rx)
     mrows = []
     for label, pt, pr, coef in [("Tx→surface→target→Rx", img, p, -1.0),

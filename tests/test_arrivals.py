@@ -11,7 +11,7 @@ import pytest
 
 import acoustics
 from acoustics.scene.load import scene_from_text
-from acoustics.simulation.setup import make_setup
+from acoustics.simulation.setup import RunCache, make_setup
 from acoustics.synthesis.synthesize import synthesize
 from processing.base.contract import ARRIVALS_GROUP
 
@@ -340,7 +340,7 @@ def test_a_path_reached_twice_counts_once():
     """Two legs of one sequence that reach the same image point (a glint found from two facets)
     make one path, not two; distinct glints stay."""
     scene = _scene(SWELL)
-    rs = make_setup(scene).ray_scene
+    rs = RunCache(make_setup(scene)).ray_scene
     t_tgt = np.array([0, 0, 0])
     t_seq = np.array([1, 1, 1])
     t_pt = np.array([[0.0, 0.0, 10.0], [0.0, 0.0, 10.0 + 2e-5], [0.0, 0.5, 10.0]])
@@ -358,7 +358,7 @@ def test_swell_bounce_delays_are_fermat_paths():
     tree = acoustics.simulate(scene, pings=1)
     tab = _table(tree)
     setup = make_setup(scene)
-    sea = next(sm for sm in setup.ray_scene.meshes if sm.moving)
+    sea = next(sm for sm in setup.rays.meshes if sm.moving)
     rot, shift = sea.placement[:3, :3], sea.placement[:3, 3]
     t_s = setup.model.transmitter.phase_center_m
     r_s = setup.model.receiver.phase_center_m

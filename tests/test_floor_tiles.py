@@ -57,6 +57,10 @@ def test_tiles_are_the_whole_floor_bit_for_bit():
     # built on demand, never more than the setting (with the search's blocks reserved)
     assert tiles.peak_cached_bytes + tiles.reserve_bytes <= tiles.memory_bytes
     assert tiles.builds == tiles.n_tiles and len(tiles.cache) < tiles.n_tiles
+    # a copy (a worker's) carries no built tile and builds the same ones
+    import pickle
+    copy = pickle.loads(pickle.dumps(tiles))
+    assert not copy.cache and np.array_equal(copy.tile(0).vertices, tiles.tile(0).vertices)
 
 
 def _casters(memory_mb):
@@ -146,18 +150,18 @@ def _survey(memory_mb, fish=20):
 
 def test_a_ping_over_tiles_is_the_ping_over_the_whole_floor():
     from acoustics.simulation.ping import simulate_ping
-    from acoustics.simulation.setup import make_setup
+    from acoustics.simulation.setup import RunCache, make_setup
     scene = _survey(0.8)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        tiled, whole = make_setup(scene), make_setup(scene)
+        setup = make_setup(scene)
+        tiled, whole = RunCache(setup), RunCache(setup)
         rs = whole.ray_scene
-        floor = rs.meshes[0].mesh
-        v, f = floor.whole()
+        v, f = rs.meshes[0].mesh.whole()
         rs.meshes[0] = dataclasses.replace(rs.meshes[0], mesh=trimesh.Trimesh(v, f, process=False))
         rs.caster = RayCaster(rs.meshes, threads=rs.caster.threads)
-        a = simulate_ping(scene, tiled, 1)[0]
-        b = simulate_ping(scene, whole, 1)[0]
+        a = simulate_ping(setup, 1, cache=tiled)[0]
+        b = simulate_ping(setup, 1, cache=whole)[0]
     ft = tiled.ray_scene.meshes[0].mesh
     assert ft.builds > ft.n_tiles               # tiles were evicted and built again
     assert ft.peak_cached_bytes + ft.reserve_bytes <= 0.8e6

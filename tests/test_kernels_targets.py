@@ -18,6 +18,7 @@ from acoustics.synthesis.receiver import quantize
 from acoustics.scene import scene_from_text
 from acoustics.sonar.build import preset_sonar
 from acoustics.synthesis.synthesize import fractional_delay_table
+from acoustics.simulation.setup import make_setup
 from acoustics.targets.draw import draw_targets
 
 
@@ -126,7 +127,7 @@ def test_bounded_rayleigh_matches_the_truncated_law():
                "y_m: [-1, 1], z_m: [10, 20], count: 4000, backscatter: {model: rayleigh, scale_m: 0.5, "
                "lo_m: 0.25, hi_m: 1.25}}\n")
     son = preset_sonar()
-    rho = draw_targets(s, 0, son.pose).rho_m
+    rho = draw_targets(make_setup(s).targets, 0, son.pose).rho_m
     assert rho.min() >= 0.25 and rho.max() <= 1.25
     law = stats.truncnorm  # noqa: F841  (scipy has no truncated Rayleigh: build its CDF)
     f = stats.rayleigh(scale=0.5).cdf
@@ -137,7 +138,7 @@ def test_bounded_rayleigh_matches_the_truncated_law():
 def test_sector_population_is_uniform_in_volume():
     s = _scene("name: s\ntargets:\n  populations:\n    - {kind: uniform_sector, range_m: [10, 30], "
                "azimuth_deg: [-5, 5], elevation_deg: [-1, 1], count: 5000}\n")
-    t = draw_targets(s, 3, preset_sonar().pose)
+    t = draw_targets(make_setup(s).targets, 3, preset_sonar().pose)
     r = np.linalg.norm(t.position_sonar_m, axis=1)
     # uniform in volume: r³ is uniform on [10³, 30³]
     assert stats.kstest((r**3 - 1e3) / (2.7e4 - 1e3), "uniform").pvalue > 0.01
@@ -151,7 +152,8 @@ def test_density_gives_poisson_counts_and_fixed_populations_stay_put():
                "z_m: [10, 15], density_per_m3: 0.5}\n    - {kind: uniform_cuboid, x_m: [0, 1], y_m: [0, 1], "
                "z_m: [10, 11], count: 3, redraw: false}\n")
     pose = preset_sonar().pose
-    sets = [draw_targets(s, p, pose) for p in range(200)]
+    spec = make_setup(s).targets
+    sets = [draw_targets(spec, p, pose) for p in range(200)]
     counts = np.array([(t.group == 0).sum() for t in sets])
     mean = 0.5 * 20
     assert abs(counts.mean() - mean) < 4 * math.sqrt(mean / 200)
@@ -166,5 +168,5 @@ def test_world_frame_targets_follow_the_pose():
     s = _scene("name: w\nsonar:\n  pose: {position_m: [0, 0, 5], boresight: [1, 0, 0], receiver_axis: [0, 1, 0]}\n"
                "targets:\n  points:\n    - {frame: world, position_m: [20, 1, 5]}\n")
     from acoustics.sonar.build import build_sonar
-    t = draw_targets(s, 0, build_sonar(s).pose)
+    t = draw_targets(make_setup(s).targets, 0, build_sonar(s).pose)
     np.testing.assert_allclose(t.position_sonar_m[0], [1, 0, 20], atol=1e-12)

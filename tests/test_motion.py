@@ -84,7 +84,7 @@ def test_a_school_turning_together_keeps_its_polarisation():
         setup = make_setup(sc)
         out = []
         for p in (0, 30):
-            v = draw_targets(sc, p, setup.pose_at(p)).velocity_world_m_s
+            v = draw_targets(setup.targets, p, setup.pose_at(p)).velocity_world_m_s
             out.append(np.arctan2(v[:, 1], v[:, 0]))
         return out
     h0, h30 = resultant(True)
@@ -119,12 +119,12 @@ def test_straight_swimming_with_substeps_is_exact():
                .replace("interval_s: 1.0", "interval_s: 0.7"))
     setup = make_setup(sc)
     motion._TRACKS.clear()
-    alone = draw_targets(sc, 37, setup.pose_at(37))
+    alone = draw_targets(setup.targets, 37, setup.pose_at(37))
     motion._TRACKS.clear()
-    first = draw_targets(sc, 0, setup.pose_at(0))
+    first = draw_targets(setup.targets, 0, setup.pose_at(0))
     for p in range(1, 41):
-        draw_targets(sc, p, setup.pose_at(p))
-    again = draw_targets(sc, 37, setup.pose_at(37))
+        draw_targets(setup.targets, p, setup.pose_at(p))
+    again = draw_targets(setup.targets, 37, setup.pose_at(37))
     np.testing.assert_array_equal(alone.position_world_m, again.position_world_m)
     np.testing.assert_allclose(again.position_world_m,
                                first.position_world_m + first.velocity_world_m_s * 37 * 0.7, atol=1e-9)
@@ -268,17 +268,21 @@ def test_meshes_built_once_answer_as_a_scene_rebuilt_at_each_pose():
     """The ray scene is built once at rest and queried through each ping's view; a scene built
     anew in that ping's sonar frame (the independent way) must give the same shadows, multipath
     image points and coefficients, mesh-target facets and reverberation hits."""
+    from acoustics.paths.meshes import scene_meshes
     from acoustics.paths.ray_scene import build_ray_scene
-    from acoustics.simulation.setup import make_setup
+    from acoustics.simulation.setup import RunCache, make_setup
     from acoustics.targets.draw import draw_targets
     sc = scene(MOVING_MESHES)
     setup = make_setup(sc)
+    cache = RunCache(setup)
     for ping in (1, 2):
         pose = setup.pose_at(ping)
-        rs, view = setup.ray_scene_at(sc, pose)
-        assert rs is setup.ray_scene and view is not None          # nothing rebuilt
-        fresh = build_ray_scene(sc, setup.sonar, setup.medium, pose)
-        t = draw_targets(sc, ping, pose)
+        rs, view = cache.ray_scene_at(pose)
+        assert rs is cache.ray_scene and view is not None          # nothing rebuilt
+        fresh = build_ray_scene(scene_meshes(setup.rays.sources, pose), setup.sonar, setup.medium,
+                                frequency_hz=setup.center_frequency_hz,
+                                specular=setup.rays.specular, threads=setup.rays.threads)
+        t = draw_targets(setup.targets, ping, pose)
         q = np.ones(len(t), complex)
         np.testing.assert_array_equal(rs.shadowed(t.position_sonar_m, view),
                                       fresh.shadowed(t.position_sonar_m))
@@ -292,8 +296,8 @@ def test_meshes_built_once_answer_as_a_scene_rebuilt_at_each_pose():
         assert len(a) > 0 and len(a) == len(b)
         np.testing.assert_allclose(a.p_tx, b.p_tx, atol=1e-9)
         np.testing.assert_allclose(a.strength, b.strength, rtol=1e-9)
-        a = rs.reverberation(sc, setup, ping, sc.seed, view)
-        b = fresh.reverberation(sc, setup, ping, sc.seed)
+        a = rs.reverberation(setup, ping, sc.seed, view)
+        b = fresh.reverberation(setup, ping, sc.seed)
         # the same rays (directions fixed in the sonar frame) meet the same floor: their hit
         # points agree to Embree's float32 rounding, refined in float64
         assert len(a) > 100 and len(a) == len(b)
@@ -306,12 +310,13 @@ def test_a_moving_sonar_reverberates_from_where_it_is():
     nearest reverberation hit of a flat floor seen straight down moves out by the heave."""
     sc = scene(MOVING_MESHES.replace("roll_deg: [0, 4], pitch_deg: [0, -1.5],\n                 yaw_deg: [0, 10], ", "")
                .replace("normal: [0, 0.05, -1.0]", "normal: [0, 0, -1.0]"))
-    from acoustics.simulation.setup import make_setup
+    from acoustics.simulation.setup import RunCache, make_setup
     setup = make_setup(sc)
+    cache = RunCache(setup)
     near = []
     for ping in (0, 2):
-        rs, view = setup.ray_scene_at(sc, setup.pose_at(ping))
-        vs = rs.reverberation(sc, setup, ping, sc.seed, view)
+        rs, view = cache.ray_scene_at(setup.pose_at(ping))
+        vs = rs.reverberation(setup, ping, sc.seed, view)
         near.append(np.linalg.norm(vs.p_tx, axis=1).min())
     assert near[1] - near[0] == pytest.approx(0.6, abs=0.01)
 
@@ -320,13 +325,14 @@ def test_a_sonar_frame_mesh_rides_with_the_moving_sonar():
     """A sphere given in the sonar frame (hung from the sonar) stays put in the sonar frame
     while the world-frame floor moves: the scene is rebuilt per pose for this mix, and the
     sphere's facets come back at the same sonar-frame places every ping."""
-    from acoustics.simulation.setup import make_setup
+    from acoustics.simulation.setup import RunCache, make_setup
     sc = scene(MOVING_MESHES.replace("{name: ball, frame: world", "{name: ball, frame: sonar"))
     setup = make_setup(sc)
+    cache = RunCache(setup)
     got = []
     for ping in (0, 2):
-        rs, view = setup.ray_scene_at(sc, setup.pose_at(ping))
-        assert view is None and rs is not setup.ray_scene
+        rs, view = cache.ray_scene_at(setup.pose_at(ping))
+        assert view is None and rs is not cache.ray_scene
         got.append(rs.mesh_targets())
     np.testing.assert_allclose(got[0].p_tx, got[1].p_tx, atol=1e-12)
 

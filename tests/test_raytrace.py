@@ -18,6 +18,7 @@ from acoustics.paths.raycast import RayCaster
 from acoustics.paths.scattering import lambert_sb, po_backscatter, rigid_sphere_backscatter
 from acoustics.scene import SceneError, scene_from_text
 from acoustics.simulation.run import make_setup, simulate
+from acoustics.simulation.setup import RunCache
 import processing
 from processing.imaging.compression import RangeFilter, window
 from processing.base.dataset import TRUTH_GROUP, read_record
@@ -202,7 +203,7 @@ def test_degenerate_faces_are_repaired_with_a_warning_or_refused(write_scene, tm
     p = write_scene(BAD_MESH.format(file="rock.stl", extra=""))
     with pytest.warns(SceneWarning, match=r"rock\.stl.*removed 1 degenerate"):
         setup = make_setup(load(p))
-    assert len(setup.ray_scene.meshes[0].mesh.faces) == 12
+    assert len(setup.rays.meshes[0].mesh.faces) == 12
     strict = write_scene(BAD_MESH.format(file="rock.stl", extra=", repair: false"), "strict.yaml")
     with pytest.raises(SceneError, match="degenerate.*repair: true"):
         make_setup(load(strict))
@@ -248,7 +249,7 @@ def test_surface_multipath_matches_analytic_image_sources():
     world = np.array([20.0, 0.0, 4.0])
     p = pose.to_sonar(world[None])[0]
     img = pose.to_sonar(_mirror(world, 0.0)[None])[0]      # surface at world z = 0
-    vs = setup.ray_scene.multipath(p[None], np.ones(1), 1)
+    vs = RunCache(setup).ray_scene.multipath(p[None], np.ones(1), 1)
     assert len(vs) == 3
     tau, amp = arrivals(setup.model, vs.p_tx, vs.strength, receive_positions_m=vs.p_rx)
     for pt, pr, coef in [(img, p, -1.0), (p, img, -1.0), (img, img, 1.0)]:
@@ -278,7 +279,7 @@ effects: {max_bounces: 3}
     pose = setup.sonar.pose
     world = np.array([30.0, 1.0, 7.0])
     p = pose.to_sonar(world[None])[0]
-    vs = setup.ray_scene.multipath(p[None], np.ones(1), order)
+    vs = RunCache(setup).ray_scene.multipath(p[None], np.ones(1), order)
     legs = [()]
     frontier = [()]
     for _ in range(order):
@@ -323,7 +324,8 @@ def test_scene_without_meshes_builds_no_ray_scene():
     stages = list(tree["Provenance"].ds["stage"].values)
     assert not {"rays_build", "occlusion", "multipath", "reverberation", "mesh_targets"} & set(stages)
     assert json.loads(tree["Provenance"].ds.attrs["rays_cast_json"]) == {}
-    assert make_setup(load("two_targets.yaml")).ray_scene is None
+    setup = make_setup(load("two_targets.yaml"))
+    assert setup.rays is None and RunCache(setup).ray_scene is None
 
 
 # --------------------------------------------------------------- mesh targets

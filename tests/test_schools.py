@@ -31,7 +31,8 @@ targets:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SceneWarning)
         sc = scene_from_text(text)
-    return sc, draw_targets(sc, 0, make_setup(sc).pose_at(0))
+    setup = make_setup(sc)
+    return sc, draw_targets(setup.targets, 0, setup.pose_at(0))
 
 
 def _ellipsoid_radius(t):

@@ -23,6 +23,7 @@ from acoustics.paths.specular import specular_points, vertex_normals
 from acoustics.scene import scene_from_text
 from acoustics.simulation.run import make_setup, simulate
 from acoustics.simulation.ping import simulate_ping
+from acoustics.simulation.setup import RunCache
 from acoustics.synthesis.arrivals import arrivals
 
 
@@ -215,7 +216,7 @@ effects: {{max_bounces: 1, specular: {{exact_surface: {str(exact).lower()}}}}}
 pings: {{count: 6, interval_s: 0.7}}
 """)
     setup = make_setup(scene)
-    rs = setup.ray_scene
+    rs = RunCache(setup).ray_scene
     pose = setup.sonar.pose
     target_w = np.array([20.0, 0.0, 2.0])
     target = pose.to_sonar(target_w[None])
@@ -272,10 +273,11 @@ def test_flat_limit_through_the_simulation_equals_the_image_method():
     curved = make_setup(text_scene(_FLAT.format(
         mesh="{shape: swell, center_m: [15, 0], size_m: [40, 20], resolution_m: 0.25, "
              "waves: [{amplitude_m: 0.0, wavelength_m: 10.0}]}")))
-    assert image.ray_scene.planes and not curved.ray_scene.planes and curved.ray_scene.curved
+    rs_image, rs_curved = RunCache(image).ray_scene, RunCache(curved).ray_scene
+    assert rs_image.planes and not rs_curved.planes and rs_curved.curved
     p = image.sonar.pose.to_sonar(np.array([[20.0, 0.5, 3.0]]))
-    a = image.ray_scene.multipath(p, np.ones(1), 1)
-    b = curved.ray_scene.multipath(p, np.ones(1), 1)
+    a = rs_image.multipath(p, np.ones(1), 1)
+    b = rs_curved.multipath(p, np.ones(1), 1)
     assert len(a) == len(b) == 3
     ta, aa = arrivals(image.model, a.p_tx, a.strength, receive_positions_m=a.p_rx)
     tb, ab = arrivals(curved.model, b.p_tx, b.strength, receive_positions_m=b.p_rx)
@@ -304,8 +306,9 @@ def test_same_seed_same_sea_whatever_the_ping_order():
              "size_m: [40, 20], resolution_m: 0.5}"))
     a = make_setup(scene)
     b = make_setup(scene)
-    xa = [simulate_ping(scene, a, p)[0] for p in (0, 1, 2)]
-    xb = [simulate_ping(scene, b, p)[0] for p in (2, 0, 1)]
+    ca, cb = RunCache(a), RunCache(b)
+    xa = [simulate_ping(a, p, cache=ca)[0] for p in (0, 1, 2)]
+    xb = [simulate_ping(b, p, cache=cb)[0] for p in (2, 0, 1)]
     assert np.array_equal(xa[0], xb[1]) and np.array_equal(xa[2], xb[0])
     assert not np.array_equal(xa[0], xa[1])           # the sea moved between pings
 
@@ -414,12 +417,12 @@ pings: {{count: 2, interval_s: 1.0}}
 """
     scene = text_scene(text.format(scattering="{law: lambert, mu_db: -30.0}"))
     setup = make_setup(scene)
-    rs = setup.ray_scene
+    rs = RunCache(setup).ray_scene
     pose = setup.sonar.pose
     hits = []
     for ping in (0, 1):
         rs.advance(ping * 1.0)
-        vs = rs.reverberation(scene, setup, ping, scene.seed)
+        vs = rs.reverberation(setup, ping, scene.seed)
         assert len(vs) > 100 and np.all(np.isfinite(vs.strength))
         w = pose.to_world(vs.p_tx)
         z, *_ = rs.meshes[0].surface.height(w[:, 0], w[:, 1], ping * 1.0)
@@ -445,7 +448,7 @@ def test_the_resource_estimate_counts_the_faces_a_mesh_builds(name):
         scene = load_scene(Path(__file__).resolve().parent.parent / "scenes" / f"{name}.yaml")
     setup = make_setup(scene)
     specs = [*scene.boundaries, *scene.targets.meshes]
-    built = {sm.name: len(sm.mesh.faces) for sm in setup.ray_scene.meshes}
+    built = {sm.name: len(sm.mesh.faces) for sm in setup.rays.meshes}
     for spec in specs:
         est = mesh_faces(spec)
         assert built[spec.name] <= est <= 1.1 * built[spec.name] + 12
@@ -466,7 +469,7 @@ def test_multipath_doppler_is_the_rate_of_change_of_each_path(mesh):
     the bounce points — equals the central difference of the path lengths with the target, the
     sonar and the sea moved ±1 ms (to 1 mm/s)."""
     setup = make_setup(text_scene(_FLAT.format(mesh=mesh)))
-    rs = setup.ray_scene
+    rs = RunCache(setup).ray_scene
     p0 = setup.sonar.pose.to_sonar(np.array([[20.0, 0.5, 3.0]]))
     v_t = np.array([[0.4, -0.3, 0.6]])          # sonar-frame axes (m/s)
     v_s = np.array([0.2, 0.1, -0.5])
@@ -502,8 +505,9 @@ def test_a_ping_gives_its_surface_paths_the_doppler_of_the_moving_sea(monkeypatc
              "waves: [{amplitude_m: 0.3, wavelength_m: 12.0}]}").replace(
         "effects: {max_bounces: 1}", "effects: {max_bounces: 1, doppler: true}"))
     setup = make_setup(scene)
+    cache = RunCache(setup)
     seen, paths = {}, []
-    real, real_multipath = ping_mod.synthesize, setup.ray_scene.multipath
+    real, real_multipath = ping_mod.synthesize, cache.ray_scene.multipath
 
     def spy(*args, **kw):
         seen.update(kw)
@@ -514,8 +518,8 @@ def test_a_ping_gives_its_surface_paths_the_doppler_of_the_moving_sea(monkeypatc
         return paths[-1]
 
     monkeypatch.setattr(ping_mod, "synthesize", spy)
-    monkeypatch.setattr(setup.ray_scene, "multipath", multipath_spy)
-    simulate_ping(scene, setup, 2)
+    monkeypatch.setattr(cache.ray_scene, "multipath", multipath_spy)
+    simulate_ping(setup, 2, cache=cache)
     rate = paths[0].rate_m_s
     f0, c = scene.signal.center_frequency_hz, scene.medium.sound_speed_m_s
     assert seen["doppler_hz"][0] == 0.0                      # the still target, direct

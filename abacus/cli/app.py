@@ -10,6 +10,7 @@ One module per command (``abacus/cli/<command>.py``), each with ``add_parser(sub
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib
 import sys
 import threading
@@ -299,7 +300,15 @@ def main(argv=None) -> int:
     except _Terminated:
         _clean_up("terminated")
         return EXIT_TERMINATED
-    return _command(args)
+    status = _command(args)
+    if args.standalone:
+        # The command is over and its outputs are closed: what remains is the interpreter's
+        # exit, whose final garbage collection walks every object the ≈ 1,900 imported modules
+        # made (0.4–0.6 s, a sixth of a 100-ping run). Frozen objects are freed by reference
+        # counting as the modules are torn down, but no longer traversed for cycles. Only for
+        # the command's own process: a program that called main(argv) keeps its collector.
+        gc.freeze()
+    return status
 
 
 def _command(args) -> int:

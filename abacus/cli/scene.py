@@ -34,8 +34,9 @@ def command(args) -> int:
         if scene.boundaries or scene.targets.meshes:
             # build every mesh now, so a bad mesh file fails here and not mid-run
             from acoustics.paths.meshes import scene_meshes
+            from acoustics.simulation.setup import resolve_mesh_sources
             from acoustics.sonar.build import build_sonar
-            built = scene_meshes(scene, build_sonar(scene).pose)
+            built = scene_meshes(resolve_mesh_sources(scene), build_sonar(scene).pose)
             meshes = f", {len(built)} mesh(es), {sum(m.n_faces for m in built)} faces"
         motion = ""
         if scene.sonar.motion is not None and scene.sonar.motion.kind == "file":

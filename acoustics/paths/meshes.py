@@ -20,7 +20,7 @@ import trimesh
 from acoustics.frames import Pose, transform_rotation
 from acoustics.seeds import ping_rng
 
-__all__ = ["SceneMesh", "build_mesh", "scene_meshes", "MeshError", "mesh_file_faces",
+__all__ = ["SceneMesh", "MeshSources", "build_mesh", "scene_meshes", "MeshError", "mesh_file_faces",
            "mesh_file_read_bytes", "grid_file_shape"]
 
 
@@ -492,8 +492,43 @@ def _repair(m, label, allowed: bool):
     return m
 
 
-def scene_meshes(scene, pose: Pose) -> list[SceneMesh]:
-    """Every boundary and mesh target of a scene, built and moved into the sonar frame.
+@dataclass(frozen=True, eq=False)
+class MeshSources:
+    """A scene's boundaries and mesh targets, and where their files are read from.
+
+    Attributes
+    ----------
+    boundaries, targets : tuple
+        The boundary and mesh-target specs, as validated.
+    folder : Path or None
+        The scene file's folder: a relative path in a spec is read from there (None: a scene
+        built from text, whose paths are taken as they are).
+    source : str
+        The scene file, for messages.
+    seed : int
+        The scene's seed (rough floors, sea surfaces).
+    floor_tiles : FloorTilesSpec, optional
+        ``effects.floor_tiles``: rough floors streamed in tiles when its ``memory_mb`` is set
+        (acoustics/paths/tiles.py); None: built whole.
+    """
+
+    boundaries: tuple = ()
+    targets: tuple = ()
+    folder: Path | None = None
+    source: str = "<scene>"
+    seed: int = 0
+    floor_tiles: object = None
+
+    def resolve_path(self, path) -> Path:
+        """A path written in the scene, relative to the scene file's folder."""
+        p = Path(path)
+        if p.is_absolute() or self.folder is None:
+            return p
+        return self.folder / p
+
+
+def scene_meshes(sources: MeshSources, pose: Pose) -> list[SceneMesh]:
+    """Every boundary and mesh target, built and moved into the sonar frame of ``pose``.
 
     Raises
     ------
@@ -502,21 +537,21 @@ def scene_meshes(scene, pose: Pose) -> list[SceneMesh]:
     """
     from acoustics.scene import SceneError
     out = []
-    items = [("boundary", f"boundaries[{i}]", b, b.role) for i, b in enumerate(scene.boundaries)]
+    items = [("boundary", f"boundaries[{i}]", b, b.role) for i, b in enumerate(sources.boundaries)]
     items += [("target", f"targets.meshes[{i}]", t, t.boundary)
-              for i, t in enumerate(scene.targets.meshes)]
-    src = str(scene.source_path or "<scene>")
-    tiles = scene.effects.floor_tiles
+              for i, t in enumerate(sources.targets)]
+    src = sources.source
+    tiles = sources.floor_tiles
     for kind, key, spec, role in items:
         mat = np.eye(4)
         if spec.frame == "world":
             mat[:3, :3] = pose.rotation.T
             mat[:3, 3] = -pose.rotation.T @ pose.position_m
-        if tiles.memory_mb is not None and spec.mesh.shape == "rough_floor":
+        if tiles is not None and tiles.memory_mb is not None and spec.mesh.shape == "rough_floor":
             # streamed in tiles (acoustics/paths/tiles.py), never built whole
             from acoustics.paths.tiles import FloorTiles, TileMemoryError
             try:
-                m = FloorTiles(spec.mesh, scene.seed, mat @ _transform_matrix(spec.mesh.transform),
+                m = FloorTiles(spec.mesh, sources.seed, mat @ _transform_matrix(spec.mesh.transform),
                                memory_mb=tiles.memory_mb, tile_vertices=tiles.tile_vertices,
                                key=f"{key}.mesh")
             except TileMemoryError as exc:
@@ -524,8 +559,8 @@ def scene_meshes(scene, pose: Pose) -> list[SceneMesh]:
             out.append(SceneMesh(spec.name, kind, role, m, spec, key))
             continue
         try:
-            m = build_mesh(spec.mesh, name=spec.name, key=f"{key}.mesh", resolve=scene.resolve_path,
-                           seed=scene.seed)
+            m = build_mesh(spec.mesh, name=spec.name, key=f"{key}.mesh",
+                           resolve=sources.resolve_path, seed=sources.seed)
         except MeshError as exc:
             raise SceneError(f"{src}: {exc}") from None
         if spec.frame == "world":
@@ -534,7 +569,7 @@ def scene_meshes(scene, pose: Pose) -> list[SceneMesh]:
         if spec.mesh.shape in ("wind_sea", "swell"):
             place = mat @ _transform_matrix(spec.mesh.transform)
             t0 = spec.mesh.time_offset_s
-            sm = SceneMesh(spec.name, kind, role, m, spec, key, moving_surface(spec.mesh, scene.seed),
+            sm = SceneMesh(spec.name, kind, role, m, spec, key, moving_surface(spec.mesh, sources.seed),
                            place, None, np.nan).at_time(t0)
         out.append(sm)
     return out

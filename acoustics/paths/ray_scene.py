@@ -42,7 +42,7 @@ import numpy as np
 
 from acoustics.frames import Pose
 from acoustics.sonar.beams import illuminated_extent
-from acoustics.paths.meshes import SceneMesh, scene_meshes
+from acoustics.paths.meshes import SceneMesh
 from acoustics.medium import Medium
 from acoustics.paths.raycast import RayCaster
 from acoustics.paths.scattering import lambert_sb, rayleigh_reflection, triangle_phase_integral
@@ -155,21 +155,23 @@ class RayScene:
         return tx | rx
 
     # ------------------------------------------------------------ reverberation
-    def reverberation(self, scene, setup, ping: int, seed: int,
+    def reverberation(self, setup, ping: int, seed: int,
                       view: Pose | None = None) -> VirtualScatterers:
         """Facet scatterers of the boundaries the transmit beam lights, in the ping's sonar frame.
 
+        ``setup`` (acoustics/simulation/setup.py) gives the fan's settings
+        (``setup.effects.reverberation``), the record's length, the transmitter and the medium.
         For a still sonar (``view`` None) the rays are cast once and their phases frozen unless
         ``refresh_phase``; a moving sonar lights other patches every ping, so its rays are cast
         from each ping's view and the phases drawn anew.
         """
-        spec = scene.effects.reverberation
+        spec = setup.effects.reverberation
         if view is None and not self.moving:
             if self._reverb_rays is None:
-                self._reverb_rays = self._cast_reverberation_rays(scene, setup, seed)
+                self._reverb_rays = self._cast_reverberation_rays(setup, seed)
             pts, amp, n = self._reverb_rays
         else:
-            pts, amp, n = self._cast_reverberation_rays(scene, setup, seed, view)
+            pts, amp, n = self._cast_reverberation_rays(setup, seed, view)
         if n == 0:
             return VirtualScatterers.empty()
         if spec.refresh_phase or view is not None or self.moving:
@@ -206,10 +208,10 @@ class RayScene:
         self._reverb_fan = (key, (u, solid))
         return u, solid
 
-    def _cast_reverberation_rays(self, scene, setup, seed, view: Pose | None = None):
-        spec = scene.effects.reverberation
+    def _cast_reverberation_rays(self, setup, seed, view: Pose | None = None):
+        spec = setup.effects.reverberation
         u, solid = self._reverberation_fan(spec, setup, seed)
-        s = scene.sampling
+        s = setup.sampling
         c = setup.medium.sound_speed_m_s
         r_max = spec.max_range_m or c * (s.time_offset_s + s.samples / s.rate_hz) / 2
         tx_c = _into(view, self.tx_center)
@@ -678,25 +680,29 @@ class RayScene:
         return self._mesh_target_scatterers
 
 
-def build_ray_scene(scene, sonar, medium, pose=None) -> RayScene | None:
-    """The ray-traced scene of a run, or None when the scene has no meshes (no caster built).
-
-    Built in the sonar frame of ``pose`` (default: the mounting pose, the sonar at rest):
-    world-frame meshes are placed there, sonar-frame meshes are taken as they are.
+def build_ray_scene(meshes, sonar, medium, *, frequency_hz: float, specular=None,
+                    threads: int | None = None) -> RayScene | None:
+    """The ray-traced scene of a run, or None without meshes (no caster built).
 
     Parameters
     ----------
-    scene : Scene
-        Its boundaries, mesh targets and ``effects`` (ray threads, specular settings).
+    meshes : list of SceneMesh
+        Every boundary and mesh target, in the sonar frame the scene is built in
+        (:func:`acoustics.paths.meshes.scene_meshes`; the run's: the mounting pose's).
     sonar : Sonar
-        The arrays (transmit and receive phase centres) and the mounting pose.
+        The arrays (transmit and receive phase centres).
     medium : Medium
-    pose : Pose, optional
+    frequency_hz : float
+        The carrier f0 (Hz).
+    specular : SpecularSpec, optional
+        The specular search's settings (``effects.specular``).
+    threads : int, optional
+        Threads for ray batches (default: every core).
     """
-    if not scene.boundaries and not scene.targets.meshes:
+    if not meshes:
         return None
-    meshes: list[SceneMesh] = scene_meshes(scene, pose if pose is not None else sonar.pose)
-    caster = RayCaster(meshes, threads=scene.effects.ray_threads)
+    meshes: list[SceneMesh] = list(meshes)
+    caster = RayCaster(meshes, threads=threads)
     planes = {}
     for i, sm in enumerate(meshes):
         if sm.kind == "boundary" and getattr(sm.spec, "reflection", None) is not None \
@@ -706,14 +712,14 @@ def build_ray_scene(scene, sonar, medium, pose=None) -> RayScene | None:
                 planes[i] = pl
     rx = sonar.receiver.elements
     fan = rx_fan = None
-    level = getattr(scene.effects.specular, "beam_level_db", None)
+    level = getattr(specular, "beam_level_db", None)
     if level is not None:
-        kw = dict(medium=medium, frequency_hz=scene.signal.center_frequency_hz)
+        kw = dict(medium=medium, frequency_hz=frequency_hz)
         fan = (*illuminated_extent(sonar.transmitter, plane="azimuth", level_db=level, **kw),
                *illuminated_extent(sonar.transmitter, plane="elevation", level_db=level, **kw))
         one = rx.subset([0])
         rx_fan = (*illuminated_extent(one, plane="azimuth", level_db=level, **kw),
                   *illuminated_extent(one, plane="elevation", level_db=level, **kw))
     return RayScene(meshes, caster, sonar.transmitter.phase_center_m, rx.phase_center_m, planes,
-                    medium, scene.signal.center_frequency_hz, specular=scene.effects.specular,
+                    medium, frequency_hz, specular=specular,
                     fan_extent_rad=fan, rx_fan_extent_rad=rx_fan)

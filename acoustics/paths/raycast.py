@@ -381,7 +381,7 @@ class RayCaster:
                 tile = tiles.tile(k)
                 dists = np.ascontiguousarray(np.minimum(reach[rows] - eps, 3e38) * (1 + 1e-6) + self.eps_m,
                                              np.float32)
-                ids = np.asarray(tile.scene.run(o32[rows], d32[rows], dists=dists, query="INTERSECT"),
+                ids = np.asarray(tile.embree.run(o32[rows], d32[rows], dists=dists, query="INTERSECT"),
                                  np.int32)
                 m = rows.size
                 f_k, m_k, t_k, p_k = (np.empty(m, np.int32), np.empty(m, np.int32), np.empty(m),
@@ -448,7 +448,7 @@ class RayCaster:
             for k, rows in tiles.rays_per_tile(s32, d32, r32, 16 * self.eps_m):
                 rows = rows[~blocked[rows]]
                 if rows.size:
-                    res = tiles.tile(k).scene.run(s32[rows], d32[rows], dists=r32[rows], query="OCCLUDED")
+                    res = tiles.tile(k).embree.run(s32[rows], d32[rows], dists=r32[rows], query="OCCLUDED")
                     blocked[rows] |= np.asarray(res) == 0
         out[ok] = blocked
         return out

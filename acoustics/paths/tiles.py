@@ -143,7 +143,7 @@ class Tile:
     """(n_f, 4): unit face normal, n·v0."""
     face_start: int
     """The tile's first facet in the floor's numbering."""
-    scene: object
+    embree: object
     """Its Embree scene."""
 
     @property
@@ -231,6 +231,12 @@ class FloorTiles:
         self.centre = (self.box_lo + self.box_hi) / 2
         self.radius = np.linalg.norm(self.box_hi - self.box_lo, axis=1) / 2
 
+    def __getstate__(self):
+        # a copy (a worker's) starts with no tiles built: Embree's scenes do not travel
+        state = dict(self.__dict__)
+        state.update(cache=OrderedDict(), cached_bytes=0.0)
+        return state
+
     # ------------------------------------------------------------- generation
     def _window(self, k: int):
         """(i0, i1, j0, j1): the vertex ranges of tile k."""
@@ -299,10 +305,10 @@ class FloorTiles:
         v = np.ascontiguousarray(vh[keep])
         n = np.ascontiguousarray(nh[keep])
         f = _grid_faces(i1 - i0, j1 - j0)
-        scene = rtcore_scene.EmbreeScene(robust=self.robust)
-        TriangleMesh(scene=scene, vertices=v.astype(np.float32), indices=f.astype(np.int32))
+        embree = rtcore_scene.EmbreeScene(robust=self.robust)
+        TriangleMesh(scene=embree, vertices=v.astype(np.float32), indices=f.astype(np.int32))
         self.builds += 1
-        return Tile(int(k), v, f, n, face_planes(v, f), int(self.face_start[k]), scene)
+        return Tile(int(k), v, f, n, face_planes(v, f), int(self.face_start[k]), embree)
 
     def tile(self, k: int) -> Tile:
         """Tile k, from the cache or built (evicting the least recently used tiles first)."""

@@ -329,7 +329,7 @@ class Scene(ConfigModel):
             return self
         from acoustics.sonar import levels as lev
         bits = self.sampling.adc.bits
-        k = lev.counts_per_unit(lv, weight_sum=lev.transmit_weight_sum(self), bits=bits)
+        k = lev.counts_per_unit(lv, weight_sum=lev.transmit_weight_sum(self.sonar), bits=bits)
         adc = self.sampling.adc.model_copy(update={"scale_counts": float(f"{k:.9g}")})
         object.__setattr__(self, "sampling", self.sampling.model_copy(update={"adc": adc}))
         if self.noise.model == "sea":

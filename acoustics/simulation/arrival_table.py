@@ -67,15 +67,15 @@ def _facets(rs, view, p_tx):
     return mesh, face
 
 
-def arrival_table(scene, setup, ping: int, vs: VirtualScatterers, targets, doppler_hz,
+def arrival_table(setup, ping: int, vs: VirtualScatterers, targets, doppler_hz,
                   ray_scene=None, view=None) -> dict:
     """One ping's arrivals as columns (:data:`COLUMNS`), strongest first.
 
     Parameters
     ----------
-    scene : Scene
-        ``effects.arrivals.floor_db`` drops arrivals more than that far below the strongest.
     setup : Setup
+        Its echo model and medium; ``effects.arrivals_floor_db`` drops arrivals more than that
+        far below the strongest.
     ping : int
     vs : VirtualScatterers, length S
         Every path of the ping, with its :class:`PathTags` (facets may come untagged).
@@ -106,7 +106,7 @@ def arrival_table(scene, setup, ping: int, vs: VirtualScatterers, targets, doppl
     with np.errstate(divide="ignore"):
         level = 20 * np.log10(np.where(mag > 0, mag, 1.0))
     keep = mag > 0
-    floor = scene.effects.arrivals.floor_db
+    floor = setup.effects.arrivals_floor_db
     if floor is not None and keep.any():
         keep &= level >= level[keep].max() + floor
     seq = np.array(tags.sequence, dtype=object)

@@ -83,7 +83,7 @@ def _ping_times(scene, pings):
 
 
 def build_tree(scene, setup, pings, samples, clipped, truth, log, seed, *,
-               arrivals=None) -> xr.DataTree:
+               arrivals=None, rays=None) -> xr.DataTree:
     """The DataTree of one simulation run, every group made by the contract's builder
     (processing/base/contract.py has the layout).
 
@@ -106,6 +106,8 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed, *,
     arrivals : list of dict, optional
         Each ping's arrivals table (acoustics/simulation/arrival_table.py): written as
         /Vendor_specific/Arrivals.
+    rays : dict, optional
+        Rays cast per purpose (:func:`rays_cast` of the run's cache).
 
     Returns
     -------
@@ -178,7 +180,7 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed, *,
 
     truth_ds = _truth(setup, pings, ping_time, truth)
     groups = {ROOT_GROUP: root, ENVIRONMENT_GROUP: env, PLATFORM_GROUP: platform_ds,
-              PROVENANCE_GROUP: provenance_dataset(scene, seed, log, rays_cast(setup)),
+              PROVENANCE_GROUP: provenance_dataset(scene, seed, log, rays),
               SONAR_GROUP: sonar_ds, ELEMENT_GROUP: eg, TRUTH_GROUP: truth_ds}
     if arrivals is not None:
         groups[ARRIVALS_GROUP] = _arrivals(scene, setup, arrivals)
@@ -299,9 +301,10 @@ def beam_group(scene, setup, pings, ping_time, samples, clipped, chan_names, *, 
                "conversion_equation_type": "none: samples are complex baseband in ADC counts"})
 
 
-def rays_cast(setup) -> dict:
-    """Rays cast per purpose in a run (empty without meshes)."""
-    rs = setup.ray_scene
+def rays_cast(cache) -> dict:
+    """Rays cast per purpose in a run (its :class:`~acoustics.simulation.setup.RunCache`;
+    empty without meshes)."""
+    rs = cache.ray_scene
     return dict(rs.caster.rays_cast) if rs is not None else {}
 
 

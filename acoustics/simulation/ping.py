@@ -1,4 +1,9 @@
-"""One ping: targets, paths, echoes, noise and ADC, each stage only when the scene needs it."""
+"""One ping: targets, paths, echoes, noise and ADC, each stage only when the scene needs it.
+
+A ping reads the run's frozen :class:`~acoustics.simulation.setup.Setup` (the resolved scene) and
+fills the run's :class:`~acoustics.simulation.setup.RunCache`; every path kind carries its own
+rate of change of length (its Doppler) in its :class:`VirtualScatterers`.
+"""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -7,7 +12,7 @@ import numpy as np
 
 from acoustics.seeds import ping_rng
 from acoustics.simulation.arrival_table import arrival_table, direct_tags
-from acoustics.simulation.setup import Setup
+from acoustics.simulation.setup import RunCache, Setup
 from acoustics.simulation.stages import StageLog
 from acoustics.synthesis.receiver import band_limited_noise, quantize
 from acoustics.synthesis.scatterers import VirtualScatterers
@@ -32,11 +37,11 @@ def direct_path_rate_m_s(setup: Setup, ping: int, pose, targets: TargetSet) -> n
     return -2.0 * closing
 
 
-def doppler_shift_hz(scene, setup: Setup, ping: int, pose, targets: TargetSet) -> np.ndarray:
+def doppler_shift_hz(setup: Setup, ping: int, pose, targets: TargetSet) -> np.ndarray:
     """Two-way Doppler shift f_d = 2 v_r f0 / c (Hz) of each target's direct path, shape (n,)
     (:func:`direct_path_rate_m_s`: f_d = −f0 (dL/dt) / c)."""
     rate = direct_path_rate_m_s(setup, ping, pose, targets)
-    return -rate * scene.signal.center_frequency_hz / setup.medium.sound_speed_m_s
+    return -rate * setup.center_frequency_hz / setup.medium.sound_speed_m_s
 
 
 def _sonar_velocity_world(setup: Setup, ping: int) -> np.ndarray:
@@ -55,13 +60,15 @@ def _with_shadow(targets: TargetSet, shadowed):
     return replace(targets, shadowed=np.asarray(shadowed, bool))
 
 
-def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
-                  log: StageLog | None = None, arrivals: list | None = None):
+def simulate_ping(setup: Setup, ping: int, *, cache: RunCache | None = None,
+                  seed: int | None = None, log: StageLog | None = None,
+                  arrivals: list | None = None):
     """One ping.
 
-    ``arrivals``: a list the ping's arrivals table (acoustics/simulation/arrival_table.py) is
-    appended to when the scene records arrivals (``effects.arrivals.enabled``); only then does
-    the ``arrivals`` stage run.
+    ``setup`` is read, never changed; ``cache`` is the run's :class:`RunCache` (a fresh one,
+    its ray caster built for this ping alone, when None). ``arrivals``: a list the ping's
+    arrivals table (acoustics/simulation/arrival_table.py) is appended to when the scene
+    records arrivals (``setup.effects.arrivals``); only then does the ``arrivals`` stage run.
 
     Returns
     -------
@@ -71,21 +78,22 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
         Clipped samples per channel (None when the ADC does not quantise).
     targets : TargetSet
     """
-    seed = scene.seed if seed is None else int(seed)
+    seed = setup.seed if seed is None else int(seed)
     log = log if log is not None else StageLog()
-    s, fx = scene.sampling, scene.effects
+    cache = cache if cache is not None else RunCache(setup, log)
+    s, fx = setup.sampling, setup.effects
     n_ch = setup.sonar.n_channels
     pose = setup.pose_at(ping)
     with log.stage("targets"):
-        targets = draw_targets(scene, ping, pose, seed=seed, swimbladders=False)
-    if has_swimbladders(scene) and len(targets):
+        targets = draw_targets(setup.targets, ping, pose, seed=seed, swimbladders=False)
+    if has_swimbladders(setup.targets) and len(targets):
         with log.stage("swimbladder_ts"):
-            targets = swimbladder_backscatter(scene, targets, ping, pose, seed)
+            targets = swimbladder_backscatter(setup.targets, targets, ping, pose, seed)
     strength = targets.rho_m * np.exp(1j * targets.phase_rad)
-    rs, view = setup.ray_scene_at(scene, pose, log)
-    scatters = fx.reverberation.enabled and any(getattr(b, "scattering", None) is not None
-                                                for b in scene.boundaries)
-    if rs is not None and rs.moving and (scatters or scene.targets.meshes or (
+    rs, view = cache.ray_scene_at(pose, log)
+    scatters = fx.reverberation is not None
+    mesh_targets = setup.rays is not None and setup.rays.has_mesh_targets
+    if rs is not None and rs.moving and (scatters or mesh_targets or (
             len(targets) and (fx.occlusion or fx.max_bounces > 0))):
         with log.stage("sea_surface"):
             rs.advance(ping * setup.interval_s)
@@ -104,7 +112,7 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
     if fx.doppler and len(targets):
         with log.stage("doppler"):
             direct_rate = direct_path_rate_m_s(setup, ping, pose, targets)[direct]
-    want = fx.arrivals.enabled
+    want = fx.arrivals
     parts = [VirtualScatterers(targets.position_sonar_m[direct], p_rx[direct],
                                strength[direct], np.full(int(direct.sum()), "direct"), direct_rate,
                                tags=direct_tags(np.flatnonzero(direct)) if want else None)]
@@ -118,18 +126,18 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
                           sonar_velocity_m_s=pose.rotation.T @ _sonar_velocity_world(setup, ping))
             parts.append(rs.multipath(targets.position_sonar_m, strength, fx.max_bounces, view,
                                       tags=want, **kw))
-    if rs is not None and scene.targets.meshes:
+    if rs is not None and mesh_targets:
         with log.stage("mesh_targets"):
             parts.append(rs.mesh_targets(view))
     if rs is not None and scatters:
         with log.stage("reverberation"):
-            parts.append(rs.reverberation(scene, setup, ping, seed, view))
+            parts.append(rs.reverberation(setup, ping, seed, view))
     vs = VirtualScatterers.concat(parts)
     # f_d = −f0 (dL/dt) / c of every path; boundary and mesh-target facets hold still (rate 0)
-    doppler = vs.doppler_hz(scene.signal.center_frequency_hz, setup.medium.sound_speed_m_s)
+    doppler = vs.doppler_hz(setup.center_frequency_hz, setup.medium.sound_speed_m_s)
     if want:
         with log.stage("arrivals"):
-            table = arrival_table(scene, setup, ping, vs, _with_shadow(targets, shadowed),
+            table = arrival_table(setup, ping, vs, _with_shadow(targets, shadowed),
                                   doppler, rs, view)
         if arrivals is not None:
             arrivals.append(table)
@@ -146,13 +154,13 @@ def simulate_ping(scene, setup: Setup, ping: int, *, seed: int | None = None,
     else:
         x = np.zeros((n_ch, s.samples), complex)
     targets = _with_shadow(targets, shadowed)
-    if scene.noise.enabled and scene.noise.sigma_counts > 0:
+    if setup.noise.sigma_counts > 0:
         with log.stage("noise"):
             x = x + band_limited_noise(ping_rng(seed, ping, "noise"), n_ch, s.samples,
-                                       sigma_counts=scene.noise.sigma_counts,
-                                       bandwidth_hz=scene.noise.bandwidth_hz, rate_hz=s.rate_hz)
+                                       sigma_counts=setup.noise.sigma_counts,
+                                       bandwidth_hz=setup.noise.bandwidth_hz, rate_hz=s.rate_hz)
     clipped = None
-    if s.adc.quantize:
+    if s.quantize:
         with log.stage("adc"):
-            x, clipped = quantize(x, s.adc.bits)
+            x, clipped = quantize(x, s.bits)
     return x, clipped, targets

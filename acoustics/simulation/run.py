@@ -11,8 +11,10 @@ Per ping p (independent of every other ping; all draws seeded by (seed, p, strea
 7. ``noise``          add band-limited receiver noise                   — only if ``noise.enabled``;
 8. ``adc``            quantise and clip to the ADC's range              — only if ``quantize``.
 
-``setup`` (arrays, pulse, transmit beamwidths, and the Embree scene when there are meshes) runs
-once per call and ``dataset`` assembles the output; the provenance records the stages that ran,
+``setup`` resolves the scene once per call into a frozen :class:`~acoustics.simulation.setup.Setup`
+(arrays, pulse, transmit beamwidths, what each stage reads, the meshes when there are any) and
+builds the run's :class:`~acoustics.simulation.setup.RunCache` (the Embree scene); the ping loop
+reads the setup only (no Scene below this module) and ``dataset`` assembles the output; the provenance records the stages that ran,
 their wall time and the rays cast per purpose. Stages a scene does not need are not entered (a
 scene without meshes never builds a ray caster, a quiet one has no ``noise`` stage).
 """
@@ -28,7 +30,7 @@ from processing.base.contract import PROVENANCE_GROUP
 
 from acoustics.simulation.dataset import build_tree, provenance_dataset, rays_cast
 from acoustics.simulation.ping import simulate_ping
-from acoustics.simulation.setup import make_setup
+from acoustics.simulation.setup import RunCache, make_setup
 from acoustics.simulation.stages import StageLog
 from acoustics.targets.draw import TargetSet
 
@@ -95,15 +97,16 @@ def simulate(scene, *, pings=None, seed: int | None = None, progress=None,
     log = StageLog()
     with log.stage("setup"):
         setup = make_setup(scene, log)
-    n_ch, n = setup.sonar.n_channels, scene.sampling.samples
+        cache = RunCache(setup, log)
+    n_ch, n = setup.sonar.n_channels, setup.sampling.samples
     # I and Q as the dataset stores them: float32 (ping, range_sample, beam), so the dataset wraps
     # them and the writer writes them without a copy
     samples = (np.zeros((len(pings), n, n_ch), np.float32), np.zeros((len(pings), n, n_ch), np.float32))
-    clipped = np.zeros((len(pings), n_ch), int) if scene.sampling.adc.quantize else None
+    clipped = np.zeros((len(pings), n_ch), int) if setup.sampling.quantize else None
     truth: list[TargetSet] = []
-    tables = [] if scene.effects.arrivals.enabled else None
+    tables = [] if setup.effects.arrivals else None
     for i, p in enumerate(pings):
-        x, c, t = simulate_ping(scene, setup, p, seed=seed, log=log, arrivals=tables)
+        x, c, t = simulate_ping(setup, p, cache=cache, seed=seed, log=log, arrivals=tables)
         samples[0][i] = x.real.T
         samples[1][i] = x.imag.T
         if clipped is not None:
@@ -113,7 +116,7 @@ def simulate(scene, *, pings=None, seed: int | None = None, progress=None,
             progress(i + 1, len(pings))
     with log.stage("dataset"):
         tree = build_tree(scene, setup, pings, samples, clipped, truth, log, seed,
-                          arrivals=tables)
+                          arrivals=tables, rays=rays_cast(cache))
     # the provenance was written inside the "dataset" stage: rewrite it with that stage's time
-    tree[PROVENANCE_GROUP] = xr.DataTree(provenance_dataset(scene, seed, log, rays_cast(setup)))
+    tree[PROVENANCE_GROUP] = xr.DataTree(provenance_dataset(scene, seed, log, rays_cast(cache)))
     return tree

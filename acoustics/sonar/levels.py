@@ -40,9 +40,8 @@ def piston_directivity_index_db(width_m: float, height_m: float, wavelength_m: f
     return 10.0 * math.log10(4.0 * math.pi * width_m * height_m / wavelength_m**2)
 
 
-def transmit_weight_sum(scene) -> float:
-    """S = Σ w of the transmitter's elements, from the scene (no arrays built)."""
-    son = scene.sonar
+def transmit_weight_sum(son) -> float:
+    """S = Σ w of the transmitter's elements, from a scene's ``sonar`` section (no arrays built)."""
     if son.preset == "abacus":
         from acoustics.sonar import preset
         return float(preset.ELEMENTS_PER_ARRAY)

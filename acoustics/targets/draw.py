@@ -22,8 +22,60 @@ import numpy as np
 from acoustics.frames import Pose, spherical_to_cartesian
 from acoustics.seeds import FIXED, ping_rng
 
-__all__ = ["TargetSet", "draw_targets", "point_positions_sonar", "draw_backscatter", "ID_BLOCK",
-           "has_swimbladders", "swimbladder_backscatter"]
+__all__ = ["TargetSet", "Targets", "TargetPoint", "draw_targets", "point_positions_sonar",
+           "draw_backscatter", "ID_BLOCK", "has_swimbladders", "swimbladder_backscatter"]
+
+
+@dataclass(frozen=True)
+class TargetPoint:
+    """One explicit point target, resolved: its position in its frame.
+
+    Attributes
+    ----------
+    frame : {"sonar", "world"}
+    position_m : (float, float, float)
+        Position (m) in ``frame`` (a scene's ⟨r, θ, φ⟩ is converted to sonar-frame x, y, z).
+    velocity_m_s : (float, float, float) or None
+        World-frame velocity (m/s): the target starts where it is at ping 0 and goes straight.
+    backscatter : object
+        Its backscatter model (``unit``, ``fixed``, ``rayleigh``, ``swimbladder``).
+    random_phase : bool
+    """
+
+    frame: str
+    position_m: tuple
+    velocity_m_s: tuple | None
+    backscatter: object
+    random_phase: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class Targets:
+    """A scene's point targets, resolved for the ping loop (acoustics/simulation/setup.py).
+
+    Attributes
+    ----------
+    points : tuple of TargetPoint
+    populations : tuple
+        The populations as validated (uniform cuboid or sector, school): their law of number,
+        place, backscatter and swimming.
+    interval_s : float
+        Ping interval (s): ping p is at t = p x interval_s.
+    pose0 : Pose
+        The sonar's world pose at ping 0 (t = 0): where moving targets given relative to the
+        sonar start from.
+    wavenumber_rad_m : float
+        k = 2π f0 / c (rad/m) of the carrier, for swimbladder echoes.
+    seed : int
+        The scene's seed (the default of :func:`draw_targets`).
+    """
+
+    points: tuple = ()
+    populations: tuple = ()
+    interval_s: float = 1.0
+    pose0: Pose | None = None
+    wavenumber_rad_m: float = 0.0
+    seed: int = 0
 
 @dataclass(frozen=True, eq=False)
 class TargetSet:
@@ -71,7 +123,8 @@ class TargetSet:
 
 
 def point_positions_sonar(points, pose: Pose) -> np.ndarray:
-    """Sonar-frame positions (m), shape (n, 3), of explicit point-target specs."""
+    """Sonar-frame positions (m), shape (n, 3), of explicit points for a sonar at ``pose``:
+    :class:`TargetPoint` or point-target specs (whose ⟨r, θ, φ⟩ is converted here)."""
     out = np.zeros((len(points), 3))
     for i, t in enumerate(points):
         if t.position_m is None:
@@ -126,20 +179,21 @@ def _population_positions(pop, n: int, rng: np.random.Generator, pose: Pose):
 ID_BLOCK = 1_000_000
 
 
-def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None,
+def draw_targets(spec: Targets, ping: int, pose: Pose, *, seed: int | None = None,
                  swimbladders: bool = True) -> TargetSet:
-    """All point targets of one ping of a scene.
+    """All point targets of one ping.
 
     Parameters
     ----------
-    scene : Scene
+    spec : Targets
+        The scene's targets, resolved (``setup.targets``).
     ping : int
         Ping index (the seed's second component; the time t = ping x ``pings.interval_s`` of
         moving targets).
     pose : Pose
         The sonar's pose at this ping (for frame conversions).
     seed : int, optional
-        Overrides ``scene.seed``.
+        Overrides ``spec.seed``.
     swimbladders : bool
         Give fish with a swimbladder model their echo (:func:`swimbladder_backscatter`); false
         leaves their ρ = 1 for the caller to time that stage apart.
@@ -149,9 +203,8 @@ def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None,
     TargetSet
     """
     from acoustics.targets.motion import swim_trajectory
-    seed = scene.seed if seed is None else int(seed)
-    spec = scene.targets
-    t = ping * scene.pings.interval_s
+    seed = spec.seed if seed is None else int(seed)
+    t = ping * spec.interval_s
     parts_w, parts_s, vels, rhos, phases, groups, ids = [], [], [], [], [], [], []
     if spec.points:
         ps = point_positions_sonar(spec.points, pose)
@@ -161,8 +214,7 @@ def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None,
         if moving:
             # a moving point starts where it is at ping 0 (in the ping-0 pose's world) and goes
             # straight: x(t) = x(0) + v t
-            from acoustics.sonar.platform import pose_at_time_zero
-            p0 = pose_at_time_zero(scene)
+            p0 = spec.pose0
             for i in moving:
                 v[i] = spec.points[i].velocity_m_s
                 pw[i] = p0.to_world(point_positions_sonar([spec.points[i]], p0))[0] + v[i] * t
@@ -190,10 +242,9 @@ def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None,
         if pop.swim is not None:
             if pop.kind != "school" and getattr(pop, "frame", "world") != "world":
                 # start from the ping-0 world positions (a sonar-frame region at the mount pose)
-                from acoustics.sonar.platform import pose_at_time_zero
-                pw = pose_at_time_zero(scene).to_world(ps)
+                pw = spec.pose0.to_world(ps)
             pw, v = swim_trajectory(pop.swim, pw, seed=seed, group=j,
-                                    interval_s=scene.pings.interval_s, ping=ping)
+                                    interval_s=spec.interval_s, ping=ping)
             ps = pose.to_sonar(pw)
         parts_s.append(ps)
         parts_w.append(pw)
@@ -208,16 +259,16 @@ def draw_targets(scene, ping: int, pose: Pose, *, seed: int | None = None,
     out = TargetSet(np.concatenate(parts_s), np.concatenate(parts_w), np.concatenate(rhos),
                     np.concatenate(phases), np.concatenate(groups).astype(int),
                     np.concatenate(ids), np.concatenate(vels))
-    return swimbladder_backscatter(scene, out, ping, pose, seed) if swimbladders else out
+    return swimbladder_backscatter(spec, out, ping, pose, seed) if swimbladders else out
 
 
-def has_swimbladders(scene) -> bool:
-    """Whether any point target or population of the scene has a swimbladder backscatter model."""
-    spec = scene.targets
+def has_swimbladders(spec: Targets) -> bool:
+    """Whether any point target or population has a swimbladder backscatter model."""
     return any(t.backscatter.model == "swimbladder" for t in (*spec.points, *spec.populations))
 
 
-def swimbladder_backscatter(scene, targets: TargetSet, ping: int, pose: Pose, seed: int) -> TargetSet:
+def swimbladder_backscatter(spec: Targets, targets: TargetSet, ping: int, pose: Pose,
+                            seed: int) -> TargetSet:
     """The targets with ρ and phase of those whose backscatter model is a swimbladder set from
     their bladder at this ping's incidence angle (acoustics/targets/fish.py); the others as they
     were.
@@ -230,18 +281,18 @@ def swimbladder_backscatter(scene, targets: TargetSet, ping: int, pose: Pose, se
 
     Parameters
     ----------
-    scene : Scene
+    spec : Targets
+        The scene's targets, resolved (``setup.targets``).
     targets : TargetSet
         As :func:`draw_targets` gives them with ``swimbladders=False``.
     ping, seed : int
     pose : Pose
         The sonar's pose at this ping: its origin is the transmitter.
     """
-    spec = scene.targets
-    if not has_swimbladders(scene) or len(targets) == 0:
+    if not has_swimbladders(spec) or len(targets) == 0:
         return targets
     from acoustics.targets.fish import fish_amplitude
-    k = 2 * np.pi * scene.signal.center_frequency_hz / scene.medium.sound_speed_m_s
+    k = spec.wavenumber_rad_m
     rho, phase = targets.rho_m.copy(), targets.phase_rad.copy()
     v = (targets.velocity_world_m_s if targets.velocity_world_m_s is not None
          else np.zeros((len(targets), 3)))
