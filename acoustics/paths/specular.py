@@ -135,22 +135,26 @@ def _residual(V, N, S, P, v):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _facet_zero(V, a, b, c, ra, rb, rc, tol):
-    """Where on facet (a, b, c) the linear interpolant of the vertex residuals ``ra``, ``rb``,
-    ``rc`` (3-tuples) vanishes, ``tol`` beyond its edges: (found, s, t) in its barycentric
-    coordinates."""
+def _facet_basis(V, a, b, c):
+    """An orthonormal basis (u1, u2) of facet (a, b, c)'s plane, u1 along its first edge:
+    (ok, u1x, u1y, u1z, u2x, u2y, u2z); not ok for a degenerate facet."""
     e1x, e1y, e1z = V[b, 0] - V[a, 0], V[b, 1] - V[a, 1], V[b, 2] - V[a, 2]
     e2x, e2y, e2z = V[c, 0] - V[a, 0], V[c, 1] - V[a, 1], V[c, 2] - V[a, 2]
     l1 = np.sqrt(e1x * e1x + e1y * e1y + e1z * e1z)
     if l1 == 0.0:
-        return False, 0.0, 0.0
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     u1x, u1y, u1z = e1x / l1, e1y / l1, e1z / l1
     d = e2x * u1x + e2y * u1y + e2z * u1z
     wx, wy, wz = e2x - d * u1x, e2y - d * u1y, e2z - d * u1z
     l2 = np.sqrt(wx * wx + wy * wy + wz * wz)
     if l2 == 0.0:
-        return False, 0.0, 0.0
-    u2x, u2y, u2z = wx / l2, wy / l2, wz / l2
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    return True, u1x, u1y, u1z, wx / l2, wy / l2, wz / l2
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _facet_solve(u1x, u1y, u1z, u2x, u2y, u2z, ra, rb, rc, tol):
+    """:func:`_facet_zero` in a facet's basis (:func:`_facet_basis`)."""
     # the three vertex residuals in the facet's basis: both components must change sign
     pa0 = ra[0] * u1x + ra[1] * u1y + ra[2] * u1z
     pb0 = rb[0] * u1x + rb[1] * u1y + rb[2] * u1z
@@ -177,6 +181,17 @@ def _facet_zero(V, a, b, c, ra, rb, rc, tol):
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _facet_zero(V, a, b, c, ra, rb, rc, tol):
+    """Where on facet (a, b, c) the linear interpolant of the vertex residuals ``ra``, ``rb``,
+    ``rc`` (3-tuples) vanishes, ``tol`` beyond its edges: (found, s, t) in its barycentric
+    coordinates."""
+    ok, u1x, u1y, u1z, u2x, u2y, u2z = _facet_basis(V, a, b, c)
+    if not ok:
+        return False, 0.0, 0.0
+    return _facet_solve(u1x, u1y, u1z, u2x, u2y, u2z, ra, rb, rc, tol)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _keep(k, cap, pair, face, s, t, out_pair, out_face, out_st):
     """Write candidate k (if there is room) and return the count: rows past ``cap`` are counted,
     so the caller can grow its buffers and search again."""
@@ -191,7 +206,7 @@ def _keep(k, cap, pair, face, s, t, out_pair, out_face, out_st):
 @nb.njit(cache=True, nogil=True, error_model="numpy")
 def _candidates(V, F, N, S, P, tol, cap, out_pair, out_face, out_st):
     """Facets on which the linearly interpolated tangential bisector vanishes, for every pair,
-    every facet tested (the reference of :func:`_candidates_blocked`); returns the number found
+    every facet tested (the reference of :func:`_candidates_tree`); returns the number found
     (rows past ``cap`` are counted, not written)."""
     tang = np.empty((V.shape[0], 3))
     k = 0
@@ -208,76 +223,137 @@ def _candidates(V, F, N, S, P, tol, cap, out_pair, out_face, out_st):
     return k
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _source_terms(S, centre, radius, active):
-    """Per active block, what the source alone contributes to the block test: the unit vector
-    from the source to the block's centre, the most it turns over the block, and whether the
-    source is near (rows: ux, uy, uz, turn, near)."""
-    out = np.empty((active.shape[0], 5))
-    for i in range(active.shape[0]):
-        blk = active[i]
-        rho = radius[blk]
-        dx, dy, dz = centre[blk, 0] - S[0], centre[blk, 1] - S[1], centre[blk, 2] - S[2]
-        r = np.sqrt(dx * dx + dy * dy + dz * dz)
-        inv = 1.0 / max(r, 1e-300)
-        out[i, 0] = dx * inv
-        out[i, 1] = dy * inv
-        out[i, 2] = dz * inv
-        out[i, 3] = 2.0 * rho / max(r - rho, 1e-300)
-        out[i, 4] = 1.0 if r <= 2.0 * rho else 0.0
-    return out
+#: the bound of the tight block test (rad): a bounce point is kept when the legs' bisector is
+#: within asin(1e-3) of the surface normal there (``specular_points``' residual test)
+_TIGHT_MARGIN = 2e-3
+#: the fixed margin (rad) of the loose block test, where a candidate is kept without a residual
+#: test (no Newton steps) or is refined off the mesh (an exact height field)
+_LOOSE_MARGIN = 0.1
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _chord(x):
+    """The most a unit vector from a point turns, 2 sin(½ asin x), as the point's target moves
+    within a sphere of radius ρ seen at distance r > ρ (x = ρ/r < 1); written without the
+    cancellation of 1 − √(1 − x²)."""
+    return x * np.sqrt(2.0 / (1.0 + np.sqrt(1.0 - x * x))) * (1.0 + 1e-12)
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _skip_tight(S, P, cx, cy, cz, rho, rho_p, ax, ay, az, cos_a, sin_a):
+    """Whether no point of the sphere (centre c, radius ``rho``) can hold a bisector
+    ê_S + ê_P within ``spread`` + ``margin`` of the cone axis (±a), for any P within
+    ``rho_p`` − ``rho`` of the given one: the bisector at the centre is farther from the axis
+    than the cone, the margin and the most it turns (each unit leg by at most the chord of the
+    angular radius of what moves: the point, and on P's leg P as well). ``cos_a``, ``sin_a``:
+    of a = spread + margin; the angle test ang > a + asin(x) (x = turn / |b|) as
+    cos(ang) < cos a √(1−x²) − sin a · x, never true once a + asin(x) ≥ π/2."""
+    if cos_a <= 0.0:
+        return False
+    dx, dy, dz = cx - S[0], cy - S[1], cz - S[2]
+    ex, ey, ez = cx - P[0], cy - P[1], cz - P[2]
+    r_s = np.sqrt(dx * dx + dy * dy + dz * dz)
+    r_p = np.sqrt(ex * ex + ey * ey + ez * ez)
+    if r_s <= rho or r_p <= rho_p:
+        return False
+    bx, by, bz = dx / r_s + ex / r_p, dy / r_s + ey / r_p, dz / r_s + ez / r_p
+    m = np.sqrt(bx * bx + by * by + bz * bz)
+    turn = _chord(rho / r_s) + _chord(rho_p / r_p)
+    if m <= turn:
+        return False
+    x = turn / m
+    return abs(bx * ax + by * ay + bz * az) / m < cos_a * np.sqrt(1.0 - x * x) - sin_a * x
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _skip_node_loose(S, P, cx, cy, cz, rho, rho_p, ax, ay, az, cos_a, sin_a):
+    """Whether the loose block test (:func:`_skip_block_loose`) skips every block of a node
+    (its blocks' spheres inside the node's, their normal cones inside its cone) for every P
+    within ``rho_p`` − ``rho`` of the given one: the node's bisector is farther from its cone
+    than the margin, the most a block's centre and P's move turn it (T, the loose bound
+    2ρ/(r − ρ) per leg) and the most the block's own test then adds (asin T/(m − T)), with
+    1e-9 rad for rounding (``cos_a``, ``sin_a``: of a = spread + margin + 1e-9; the angles
+    added as in :func:`_skip_tight`)."""
+    if cos_a <= 0.0:
+        return False
+    dx, dy, dz = cx - S[0], cy - S[1], cz - S[2]
+    ex, ey, ez = cx - P[0], cy - P[1], cz - P[2]
+    r_s = np.sqrt(dx * dx + dy * dy + dz * dz)
+    r_p = np.sqrt(ex * ex + ey * ey + ez * ez)
+    if r_s <= 3.0 * rho or r_p <= 3.0 * rho_p:
+        return False
+    bx, by, bz = dx / r_s + ex / r_p, dy / r_s + ey / r_p, dz / r_s + ez / r_p
+    m = np.sqrt(bx * bx + by * by + bz * bz)
+    turn = 2.0 * rho / (r_s - rho) + 2.0 * rho_p / (r_p - rho_p)
+    if m <= 2.0 * turn:
+        return False
+    x1, x2 = turn / m, turn / (m - turn)
+    c1, s1 = np.sqrt(1.0 - x1 * x1), np.sqrt(1.0 - x2 * x2)
+    c = cos_a * c1 - sin_a * x1                 # cos, sin of a + asin(x1)
+    s = sin_a * c1 + cos_a * x1
+    if c <= 0.0:
+        return False
+    return abs(bx * ax + by * ay + bz * az) / m < c * s1 - s * x2
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _skip_block_loose(S, P, cx, cy, cz, rho, ax, ay, az, cos_a, sin_a, wide, margin_ok):
+    """The loose block test: the angle test ang > a + asin(x) (a = cone + margin,
+    x = turn / |b|, turn = 2ρ/(r − ρ) per leg) as cos(ang) < cos a √(1−x²) − sin a · x, valid
+    while a + asin(x) < π (``wide`` blocks, a ≥ π/2, may exceed it)."""
+    dx, dy, dz = cx - S[0], cy - S[1], cz - S[2]
+    r = np.sqrt(dx * dx + dy * dy + dz * dz)
+    inv = 1.0 / max(r, 1e-300)
+    s0, s1, s2 = dx * inv, dy * inv, dz * inv
+    s3 = 2.0 * rho / max(r - rho, 1e-300)
+    near_s = r <= 2.0 * rho
+    ex, ey, ez = cx - P[0], cy - P[1], cz - P[2]
+    r_p = np.sqrt(ex * ex + ey * ey + ez * ez)
+    near = near_s | (r_p <= 2.0 * rho)
+    i_p = 1.0 / max(r_p, 1e-300)
+    bx = s0 + ex * i_p
+    by = s1 + ey * i_p
+    bz = s2 + ez * i_p
+    turn = s3 + 2.0 * rho / max(r_p - rho, 1e-300)
+    m = np.sqrt(bx * bx + by * by + bz * bz)
+    x = min(1.0, turn / max(m, 1e-300))
+    cosang = abs(bx * ax + by * ay + bz * az) / max(m, 1e-300)
+    limit = cos_a * np.sqrt(1.0 - x * x) - sin_a * x
+    return (not near) and (m > turn) and (cosang < limit) and margin_ok and not (wide and x >= sin_a)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _block_mask(src, P, centre, radius, axis, cos_a, sin_a, wide, margin_ok, active, mask):
-    """mask[i] = 1 where the reflection law may hold in block active[i] for the pair (S, P)
-    (``src``: :func:`_source_terms` of S): the test of :func:`_candidates_blocked` without
-    branches, so that it vectorises — the angle test ang > a + asin(x) (a = cone + margin,
-    x = turn / |b|) as cos(ang) < cos a √(1−x²) − sin a · x, valid while a + asin(x) < π
-    (``wide`` blocks, a ≥ π/2, may exceed it)."""
-    for i in range(active.shape[0]):
-        blk = active[i]
-        rho = radius[blk]
-        ex, ey, ez = centre[blk, 0] - P[0], centre[blk, 1] - P[1], centre[blk, 2] - P[2]
-        r_p = np.sqrt(ex * ex + ey * ey + ez * ez)
-        near = (src[i, 4] > 0.0) | (r_p <= 2.0 * rho)
-        # far enough from both ends here (near ones pass whatever these give)
-        i_p = 1.0 / max(r_p, 1e-300)
-        bx = src[i, 0] + ex * i_p
-        by = src[i, 1] + ey * i_p
-        bz = src[i, 2] + ez * i_p
-        turn = src[i, 3] + 2.0 * rho / max(r_p - rho, 1e-300)
-        m = np.sqrt(bx * bx + by * by + bz * bz)
-        x = min(1.0, turn / max(m, 1e-300))
-        cosang = abs(bx * axis[blk, 0] + by * axis[blk, 1] + bz * axis[blk, 2]) / max(m, 1e-300)
-        limit = cos_a[blk] * np.sqrt(1.0 - x * x) - sin_a[blk] * x
-        skip = (~near) & (m > turn) & (cosang < limit) & margin_ok[blk] & ~(wide[blk] & (x >= sin_a[blk]))
-        mask[i] = 0 if skip else 1
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _candidates_blocked(V, F, N, S, P, tol, order, starts, centre, radius, axis, spread, bvert,
-                        bvstart, local, allowed, margin, cap, out_pair, out_face, out_st):
+def _candidates_tree(V, F, N, S, P, tol, order, starts, centre, radius, axis, spread, bvert,
+                     bvstart, local, tight_radius, n_centre, n_radius, n_axis, n_spread,
+                     n_first, roots, allowed, tight, perm, groups, cap, out_pair, out_face,
+                     out_st, out_pos):
     """:func:`_candidates` over blocks of spatially close facets, skipping a block where the
-    reflection law cannot hold: the angle between the legs' bisector at its centre and the
-    block's normal cone exceeds the cone's half-angle, plus the most the bisector can turn
-    within the block's bounding sphere, plus ``margin`` (rad); and the blocks not
-    ``allowed``. In a block that may hold a bounce point each vertex's residual is evaluated
-    once (``bvert``: the blocks' vertices, ``local``: each facet's three, indexed into its
-    block's), as :func:`_candidates` does. The sources' terms are computed once for a run of
-    pairs that share their source (the usual case: a phase centre and many targets)."""
+    reflection law cannot hold there, and whole nodes of blocks (a tree over the blocks, each
+    node a sphere and a normal cone holding its children's) where it cannot hold in any.
+
+    ``tight``: a block is skipped where the legs' bisector stays, everywhere in the block's
+    sphere (``tight_radius``: grown by the most the smooth surface lifts off its facets), farther
+    from its normal cone than asin 1e-3 — the residual a bounce point must meet — with 1e-3 rad to
+    spare: no bounce point it could hold survives :func:`specular_points`' test, so the same
+    points come out as from :func:`_candidates` (their Newton steps may stop at another
+    iteration: the same points to ~1e-12 m). Otherwise the loose test: the cone's half-angle
+    plus a fixed 0.1 rad margin (the candidates themselves are kept, or refined off the mesh);
+    its nodes skip only where it skips every block, so the candidates are those of the block
+    test alone. The blocks not ``allowed`` are skipped.
+
+    The pairs go in groups (``perm[groups[g]:groups[g + 1]]``, one source, receivers close
+    together): the tree is walked once per group, P anywhere in the group's sphere, and each
+    pair then tests the blocks the walk kept. In such a block each vertex's source leg and
+    each facet's basis are found once per group, each vertex's residual once per pair
+    (``bvert``: the blocks' vertices, ``local``: each facet's three, indexed into its
+    block's), with the products of :func:`_candidates`. Nodes: ids from the number of blocks
+    on, the children of node i are ``n_first[i] .. n_first[i + 1]`` (blocks or nodes),
+    ``roots`` the top ones. Rows: (pair, facet, s, t, the facet's place in block order);
+    returns their number (rows past ``cap`` are counted, not written)."""
     k = 0
     n_b = starts.shape[0] - 1
-    n_act = 0
-    for blk in range(n_b):
-        if allowed[blk]:
-            n_act += 1
-    active = np.empty(n_act, np.int64)
-    n_act = 0
-    for blk in range(n_b):
-        if allowed[blk]:
-            active[n_act] = blk
-            n_act += 1
+    n_n = n_centre.shape[0]
+    margin = _TIGHT_MARGIN if tight else _LOOSE_MARGIN
     a = np.empty(n_b)
     for blk in range(n_b):
         a[blk] = spread[blk] + margin
@@ -285,33 +361,190 @@ def _candidates_blocked(V, F, N, S, P, tol, order, starts, centre, radius, axis,
     sin_a = np.sin(a)
     wide = a >= 0.5 * np.pi
     margin_ok = a < np.pi          # a cone of half-angle π or more holds every direction
-    mask = np.empty(n_act, np.uint8)
+    n_a = n_spread + (margin if tight else margin + 1e-9)
+    b_cos = np.cos(a + 1e-9)           # a block as a node of the loose test
+    b_sin = np.sin(a + 1e-9)
+    n_cos = np.cos(n_a)
+    n_sin = np.sin(n_a)
+    # a node holds an allowed block (children come before their parents)
+    n_ok = np.zeros(n_n, np.uint8)
+    for i in range(n_n):
+        for c in range(n_first[i], n_first[i + 1]):
+            if (allowed[c] if c < n_b else n_ok[c - n_b]) != 0:
+                n_ok[i] = 1
+                break
     most = 0
     for blk in range(n_b):
         most = max(most, bvstart[blk + 1] - bvstart[blk])
     tang = np.empty((most, 3))
-    src = np.empty((0, 5))
-    for j in range(S.shape[0]):
-        if j == 0 or S[j, 0] != S[j - 1, 0] or S[j, 1] != S[j - 1, 1] or S[j, 2] != S[j - 1, 2]:
-            src = _source_terms(S[j], centre, radius, active)
-        _block_mask(src, P[j], centre, radius, axis, cos_a, sin_a, wide, margin_ok, active, mask)
-        for ia in range(n_act):
-            if mask[ia] == 0:
-                continue
-            blk = active[ia]
-            v0 = bvstart[blk]
-            for u in range(bvstart[blk + 1] - v0):
-                tang[u, 0], tang[u, 1], tang[u, 2] = _residual(V, N, S[j], P[j], bvert[v0 + u])
-            for i in range(starts[blk], starts[blk + 1]):
-                f = order[i]
-                la, lb, lc = local[i, 0], local[i, 1], local[i, 2]
-                ok, s, t = _facet_zero(V, F[f, 0], F[f, 1], F[f, 2],
-                                       (tang[la, 0], tang[la, 1], tang[la, 2]),
-                                       (tang[lb, 0], tang[lb, 1], tang[lb, 2]),
-                                       (tang[lc, 0], tang[lc, 1], tang[lc, 2]), tol)
-                if ok:
-                    k = _keep(k, cap, j, f, s, t, out_pair, out_face, out_st)
+    stack = np.empty(64 * (roots.shape[0] + 16), np.int64)
+    kept = np.empty(n_b, np.int64)
+    ready = np.zeros(n_b, np.int64) - 1          # the group whose caches a block's slots hold
+    slot_v = np.empty(n_b, np.int64)
+    slot_f = np.empty(n_b, np.int64)
+    es = np.empty((0, 3))
+    basis = np.empty((0, 7))
+    for g in range(groups.shape[0] - 1):
+        g0, g1 = groups[g], groups[g + 1]
+        Sg = S[perm[g0]]
+        cx = cy = cz = 0.0
+        for q in range(g0, g1):
+            cx += P[perm[q], 0]
+            cy += P[perm[q], 1]
+            cz += P[perm[q], 2]
+        n_g = g1 - g0
+        Pg = np.array([cx / n_g, cy / n_g, cz / n_g])
+        r_g = 0.0
+        for q in range(g0, g1):
+            dx, dy, dz = P[perm[q], 0] - Pg[0], P[perm[q], 1] - Pg[1], P[perm[q], 2] - Pg[2]
+            r_g = max(r_g, np.sqrt(dx * dx + dy * dy + dz * dz))
+        r_g = r_g * (1.0 + 1e-9) + 1e-12
+        # the walk: the blocks that may hold a bounce point of some pair of the group
+        n_kept = 0
+        top = 0
+        for i in range(roots.shape[0] - 1, -1, -1):
+            stack[top] = roots[i]
+            top += 1
+        while top > 0:
+            top -= 1
+            node = stack[top]
+            if node >= n_b:
+                i = node - n_b
+                if n_ok[i] == 0:
+                    continue
+                if tight:
+                    skip = _skip_tight(Sg, Pg, n_centre[i, 0], n_centre[i, 1], n_centre[i, 2],
+                                       n_radius[i], n_radius[i] + r_g, n_axis[i, 0],
+                                       n_axis[i, 1], n_axis[i, 2], n_cos[i], n_sin[i])
+                else:
+                    skip = _skip_node_loose(Sg, Pg, n_centre[i, 0], n_centre[i, 1],
+                                            n_centre[i, 2], n_radius[i], n_radius[i] + r_g,
+                                            n_axis[i, 0], n_axis[i, 1], n_axis[i, 2],
+                                            n_cos[i], n_sin[i])
+                if not skip:
+                    for c in range(n_first[i + 1] - 1, n_first[i] - 1, -1):
+                        stack[top] = c
+                        top += 1
+            elif allowed[node] != 0:
+                # the block itself, for any P of the group (a node of one block)
+                if tight:
+                    skip = _skip_tight(Sg, Pg, centre[node, 0], centre[node, 1],
+                                       centre[node, 2], tight_radius[node],
+                                       tight_radius[node] + r_g, axis[node, 0], axis[node, 1],
+                                       axis[node, 2], cos_a[node], sin_a[node])
+                else:
+                    skip = _skip_node_loose(Sg, Pg, centre[node, 0], centre[node, 1],
+                                            centre[node, 2], radius[node], radius[node] + r_g,
+                                            axis[node, 0], axis[node, 1], axis[node, 2],
+                                            b_cos[node], b_sin[node])
+                if not skip:
+                    kept[n_kept] = node
+                    n_kept += 1
+        # this group's caches: each kept block's source legs and facet bases, made on first use
+        n_vs = 0
+        n_fs = 0
+        for ib in range(n_kept):
+            blk = kept[ib]
+            n_vs += bvstart[blk + 1] - bvstart[blk]
+            n_fs += starts[blk + 1] - starts[blk]
+        if es.shape[0] < n_vs:
+            es = np.empty((n_vs, 3))
+        if basis.shape[0] < n_fs:
+            basis = np.empty((n_fs, 7))
+        used_v = 0
+        used_f = 0
+        for q in range(g0, g1):
+            j = perm[q]
+            Pj = P[j]
+            for ib in range(n_kept):
+                blk = kept[ib]
+                if tight:
+                    skip = _skip_tight(Sg, Pj, centre[blk, 0], centre[blk, 1], centre[blk, 2],
+                                       tight_radius[blk], tight_radius[blk], axis[blk, 0],
+                                       axis[blk, 1], axis[blk, 2], cos_a[blk], sin_a[blk])
+                else:
+                    skip = _skip_block_loose(Sg, Pj, centre[blk, 0], centre[blk, 1],
+                                             centre[blk, 2], radius[blk], axis[blk, 0],
+                                             axis[blk, 1], axis[blk, 2], cos_a[blk], sin_a[blk],
+                                             wide[blk], margin_ok[blk])
+                if skip:
+                    continue
+                v0 = bvstart[blk]
+                nv = bvstart[blk + 1] - v0
+                f0 = starts[blk]
+                nf = starts[blk + 1] - f0
+                if ready[blk] != g:
+                    ready[blk] = g
+                    slot_v[blk] = used_v
+                    slot_f[blk] = used_f
+                    for u in range(nv):
+                        w = bvert[v0 + u]
+                        dx, dy, dz = V[w, 0] - Sg[0], V[w, 1] - Sg[1], V[w, 2] - Sg[2]
+                        r = np.sqrt(dx * dx + dy * dy + dz * dz)
+                        if r > 0.0:
+                            es[used_v + u, 0] = dx / r
+                            es[used_v + u, 1] = dy / r
+                            es[used_v + u, 2] = dz / r
+                        else:
+                            es[used_v + u, 0] = es[used_v + u, 1] = es[used_v + u, 2] = 0.0
+                    for u in range(nf):
+                        f = order[f0 + u]
+                        ok, u1x, u1y, u1z, u2x, u2y, u2z = _facet_basis(V, F[f, 0], F[f, 1], F[f, 2])
+                        basis[used_f + u, 0] = 1.0 if ok else 0.0
+                        basis[used_f + u, 1] = u1x
+                        basis[used_f + u, 2] = u1y
+                        basis[used_f + u, 3] = u1z
+                        basis[used_f + u, 4] = u2x
+                        basis[used_f + u, 5] = u2y
+                        basis[used_f + u, 6] = u2z
+                    used_v += nv
+                    used_f += nf
+                sv, sf = slot_v[blk], slot_f[blk]
+                for u in range(nv):
+                    w = bvert[v0 + u]
+                    # the bisector as _residual sums it: 0, then the source's leg, then P's
+                    bx = by = bz = 0.0
+                    bx += es[sv + u, 0]
+                    by += es[sv + u, 1]
+                    bz += es[sv + u, 2]
+                    dx, dy, dz = V[w, 0] - Pj[0], V[w, 1] - Pj[1], V[w, 2] - Pj[2]
+                    r = np.sqrt(dx * dx + dy * dy + dz * dz)
+                    if r > 0.0:
+                        bx += dx / r
+                        by += dy / r
+                        bz += dz / r
+                    bn = bx * N[w, 0] + by * N[w, 1] + bz * N[w, 2]
+                    tang[u, 0] = bx - bn * N[w, 0]
+                    tang[u, 1] = by - bn * N[w, 1]
+                    tang[u, 2] = bz - bn * N[w, 2]
+                for u in range(nf):
+                    if basis[sf + u, 0] == 0.0:
+                        continue
+                    i = f0 + u
+                    la, lb, lc = local[i, 0], local[i, 1], local[i, 2]
+                    ok, s, t = _facet_solve(basis[sf + u, 1], basis[sf + u, 2], basis[sf + u, 3],
+                                            basis[sf + u, 4], basis[sf + u, 5], basis[sf + u, 6],
+                                            (tang[la, 0], tang[la, 1], tang[la, 2]),
+                                            (tang[lb, 0], tang[lb, 1], tang[lb, 2]),
+                                            (tang[lc, 0], tang[lc, 1], tang[lc, 2]), tol)
+                    if ok:
+                        if k < cap:
+                            out_pos[k] = i
+                        k = _keep(k, cap, j, order[i], s, t, out_pair, out_face, out_st)
     return k
+
+
+@nb.njit(cache=True, nogil=True)
+def _morton(q):
+    """Morton (Z-curve) codes of points quantised to 10 bits per axis, q (n, 3) uint64."""
+    code = np.zeros(q.shape[0], np.uint64)
+    for i in range(q.shape[0]):
+        c = np.uint64(0)
+        for bit in range(10):
+            for d in range(3):
+                c |= ((q[i, d] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + d)
+        code[i] = c
+    return code
 
 
 def _blocks(V, F, N, size: int = 16):
@@ -321,11 +554,7 @@ def _blocks(V, F, N, size: int = 16):
     lo, hi = cen.min(axis=0), cen.max(axis=0)
     # one scale for every axis: a thin dimension (a sea's heights) gets few bits, not the top one
     q = ((cen - lo) / max(float((hi - lo).max()), 1e-300) * 1023).astype(np.uint64)
-    code = np.zeros(len(F), np.uint64)
-    for bit in range(10):
-        for d in range(3):
-            code |= ((q[:, d] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + d)
-    order = np.argsort(code, kind="stable")
+    order = np.argsort(_morton(q), kind="stable")
     starts = np.append(np.arange(0, len(F), size), len(F)).astype(np.int64)
     fv = F[order].ravel()                                  # 3 vertices per facet, in order
     at = 3 * starts[:-1]
@@ -346,8 +575,50 @@ def _blocks(V, F, N, size: int = 16):
     bvert = (uniq % len(V)).astype(np.int64)
     bvstart = np.searchsorted(uniq, np.arange(at.size + 1, dtype=np.int64) * len(V)).astype(np.int64)
     local = (np.searchsorted(uniq, key) - bvstart[owner]).reshape(-1, 3).astype(np.int64)
+    # the tight test's spheres: the smooth surface lifts a facet's point by at most half its
+    # longest edge times the sine between a vertex normal and the facet's (Phong, α = ½)
+    tri = V[F[order]]
+    fn = _unit(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
+    edge = np.max(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2), axis=1)
+    cos_vf = np.abs(np.einsum("fvj,fj->fv", N[F[order]], fn))
+    sag = 0.5 * edge * np.sqrt(np.clip(1.0 - cos_vf.min(axis=1) ** 2, 0.0, 1.0)) + 1e-6 * edge
+    tight_radius = (radius + np.maximum.reduceat(sag, starts[:-1])) * (1 + 1e-9) + 1e-12
     return (order.astype(np.int64), starts, centre, radius, axis, spread, bvert, bvstart,
-            np.ascontiguousarray(local))
+            np.ascontiguousarray(local), tight_radius, *_tree(centre, tight_radius, axis, spread))
+
+
+def _tree(centre, radius, axis, spread, fan: int = 8):
+    """Nodes over the blocks (consecutive in Morton order, ``fan`` to a node, level by level
+    until at most ``fan`` are left): each node's sphere holds its children's spheres and its
+    normal cone their cones. Returns (centre, radius, axis, spread, first, roots): node i's
+    children are the ids ``first[i] .. first[i + 1]`` (ids below the number of blocks are
+    blocks, node i is id n_blocks + i), ``roots`` the ids of the top level."""
+    n_b = centre.shape[0]
+    cen, rad, ax, spr, first = [], [], [], [], []
+    ids = np.arange(n_b, dtype=np.int64)          # the current level's ids
+    lc, lr, la, ls = centre, radius, axis, spread
+    while ids.size > fan:
+        at = np.arange(0, ids.size, fan)
+        cnt = np.diff(np.append(at, ids.size))
+        owner = np.repeat(np.arange(at.size), cnt)
+        c = np.add.reduceat(lc, at, axis=0) / cnt[:, None]
+        r = np.maximum.reduceat(np.linalg.norm(lc - c[owner], axis=1) + lr, at) * (1 + 1e-9)
+        s = np.add.reduceat(la, at, axis=0)
+        ns = np.linalg.norm(s, axis=1)
+        a = np.where(ns[:, None] > 0, s / np.where(ns > 0, ns, 1.0)[:, None], [0.0, 0.0, 1.0])
+        turn = np.arccos(np.clip(np.einsum("ij,ij->i", la, a[owner]), -1.0, 1.0))
+        sp = np.minimum(np.maximum.reduceat(turn + ls, at) * (1 + 1e-9) + 1e-12, np.pi)
+        first.append(ids[at])
+        cen.append(c), rad.append(r), ax.append(a), spr.append(sp)
+        ids = n_b + sum(len(x) for x in cen[:-1]) + np.arange(at.size, dtype=np.int64)
+        lc, lr, la, ls = c, r, a, sp
+    if not cen:
+        z = np.zeros((0, 3))
+        return z, np.zeros(0), z.copy(), np.zeros(0), np.zeros(1, np.int64), ids
+    # the last level's children end where its own ids begin
+    first = np.concatenate(first + [ids[:1]]).astype(np.int64)
+    return (np.concatenate(cen), np.concatenate(rad), np.ascontiguousarray(np.concatenate(ax)),
+            np.concatenate(spr), first, ids)
 
 
 #: the blocks of the last few meshes searched, keyed by where their arrays live, their shapes
@@ -416,6 +687,124 @@ def _geometry(V, F, N, face, st, S, P):
     return x, n, tan, hess, grad, legs, bn, flat
 
 
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _newton_on_mesh(V, F, N, face, st, S, P, iterations):
+    """Newton's steps of :func:`specular_points` on the mesh's smooth surface, one candidate at
+    a time (the geometry of :func:`_geometry`): each stops once its step is below 1e-12 of its
+    facet, where the reference loop steps every candidate until all have. Returns the final
+    (s, t), shape (k, 2)."""
+    out = st.copy()
+    for k in range(face.shape[0]):
+        a, b, c = F[face[k], 0], F[face[k], 1], F[face[k], 2]
+        e = np.empty((2, 3))
+        dn = np.empty((2, 3))
+        for j in range(3):
+            e[0, j] = V[b, j] - V[a, j]
+            e[1, j] = V[c, j] - V[a, j]
+            dn[0, j] = N[b, j] - N[a, j]
+            dn[1, j] = N[c, j] - N[a, j]
+        s, t = out[k, 0], out[k, 1]
+        for _ in range(iterations):
+            w = (1.0 - s - t, s, t)
+            flat = np.empty(3)
+            for j in range(3):
+                flat[j] = V[a, j] + s * e[0, j] + t * e[1, j]
+            x = flat.copy()
+            for i in range(3):
+                v = (a, b, c)[i]
+                h = 0.0
+                for j in range(3):
+                    h += (flat[j] - V[v, j]) * N[v, j]
+                for j in range(3):
+                    x[j] -= 0.5 * w[i] * h * N[v, j]
+            nu = np.empty(3)
+            for j in range(3):
+                nu[j] = N[a, j] + s * dn[0, j] + t * dn[1, j]
+            nlen = np.sqrt(nu[0] * nu[0] + nu[1] * nu[1] + nu[2] * nu[2])
+            inv = 1.0 / nlen if nlen > 0 else 1.0
+            n = nu * inv
+            tan = np.empty((2, 3))
+            dnu = np.empty((2, 3))
+            for q in range(2):
+                en = e[q, 0] * n[0] + e[q, 1] * n[1] + e[q, 2] * n[2]
+                dd = dn[q, 0] * n[0] + dn[q, 1] * n[1] + dn[q, 2] * n[2]
+                for j in range(3):
+                    tan[q, j] = e[q, j] - en * n[j]
+                    dnu[q, j] = (dn[q, j] - dd * n[j]) * inv
+            h00 = h01 = h11 = 0.0
+            bis = np.zeros(3)
+            for w_ in range(2):
+                Q = S[k] if w_ == 0 else P[k]
+                d0, d1, d2 = x[0] - Q[0], x[1] - Q[1], x[2] - Q[2]
+                r = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                if r > 0:
+                    u0, u1, u2 = d0 / r, d1 / r, d2 / r
+                    bis[0] += u0
+                    bis[1] += u1
+                    bis[2] += u2
+                    t0 = tan[0, 0] * u0 + tan[0, 1] * u1 + tan[0, 2] * u2
+                    t1 = tan[1, 0] * u0 + tan[1, 1] * u1 + tan[1, 2] * u2
+                    g00 = tan[0, 0] * tan[0, 0] + tan[0, 1] * tan[0, 1] + tan[0, 2] * tan[0, 2]
+                    g01 = tan[0, 0] * tan[1, 0] + tan[0, 1] * tan[1, 1] + tan[0, 2] * tan[1, 2]
+                    g11 = tan[1, 0] * tan[1, 0] + tan[1, 1] * tan[1, 1] + tan[1, 2] * tan[1, 2]
+                    h00 += (g00 - t0 * t0) / r
+                    h01 += (g01 - t0 * t1) / r
+                    h11 += (g11 - t1 * t1) / r
+                else:
+                    bis[0] += d0
+                    bis[1] += d1
+                    bis[2] += d2
+            bn = bis[0] * n[0] + bis[1] * n[1] + bis[2] * n[2]
+            ii00 = -(dnu[0, 0] * tan[0, 0] + dnu[0, 1] * tan[0, 1] + dnu[0, 2] * tan[0, 2])
+            ii11 = -(dnu[1, 0] * tan[1, 0] + dnu[1, 1] * tan[1, 1] + dnu[1, 2] * tan[1, 2])
+            ii01 = -0.5 * ((dnu[0, 0] * tan[1, 0] + dnu[0, 1] * tan[1, 1] + dnu[0, 2] * tan[1, 2])
+                           + (dnu[1, 0] * tan[0, 0] + dnu[1, 1] * tan[0, 1] + dnu[1, 2] * tan[0, 2]))
+            h00 += bn * ii00
+            h01 += bn * ii01
+            h11 += bn * ii11
+            g0 = tan[0, 0] * bis[0] + tan[0, 1] * bis[1] + tan[0, 2] * bis[2]
+            g1 = tan[1, 0] * bis[0] + tan[1, 1] * bis[1] + tan[1, 2] * bis[2]
+            det = h00 * h11 - h01 * h01
+            if not abs(det) > 0.0:
+                break                       # no step: the reference steps it by zero
+            ds = -(h11 * g0 - h01 * g1) / det
+            dt = -(-h01 * g0 + h00 * g1) / det
+            # never farther than the facet's own size per step (as the reference)
+            big = max(abs(ds), abs(dt))
+            scale = max(1.0, big)
+            s += ds / scale
+            t += dt / scale
+            if big < 1e-12:
+                break
+        out[k, 0] = s
+        out[k, 1] = t
+    return out
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _merge_repeats(pair, x, scale):
+    """Rows (sorted by pair, then path length) that repeat a kept row among the last 8 kept:
+    the same pair and a point within 1e-3 of its facet's edge (+ 1 nm). Returns the mask of
+    the rows kept."""
+    keep = np.zeros(pair.shape[0], np.bool_)
+    kept = np.empty(pair.shape[0], np.int64)
+    n = 0
+    for i in range(pair.shape[0]):
+        dup = False
+        for q in range(max(0, n - 8), n):
+            u = kept[q]
+            if pair[u] == pair[i]:
+                d0, d1, d2 = x[u, 0] - x[i, 0], x[u, 1] - x[i, 1], x[u, 2] - x[i, 2]
+                if np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) < 1e-3 * scale[i] + 1e-9:
+                    dup = True
+                    break
+        if not dup:
+            keep[i] = True
+            kept[n] = i
+            n += 1
+    return keep
+
+
 def _height_field_geometry(hf, xy, S, P):
     """As :func:`_geometry` on an exact height field z(x, y) (its own frame): point, normal,
     tangents X_x, X_y, Hessian of φ in (x, y), gradient, legs, b·n."""
@@ -452,32 +841,65 @@ def _inside_xy(tri_xy, xy, eps):
     return (s >= -eps) & (t >= -eps) & (s + t <= 1 + eps), np.column_stack([s, t])
 
 
-def _search_split(V, F, N, S, P, tol, blocks, cap, allowed):
-    """The blocked search with the pairs split across two threads (the kernel releases the
-    GIL); the parts join in pair order, so the rows do not depend on the split."""
+def _pair_groups(S, P, size: int = 16):
+    """The pairs in groups for :func:`_candidates_tree`: one source per group and receivers
+    close together (runs of ``size`` in Morton order of the receivers). Returns (perm, groups):
+    group g is ``perm[groups[g]:groups[g + 1]]``."""
+    _, sid = np.unique(S, axis=0, return_inverse=True)
+    sid = sid.reshape(-1)
+    lo, hi = P.min(axis=0), P.max(axis=0)
+    q = ((P - lo) / max(float((hi - lo).max()), 1e-300) * 1023).astype(np.uint64)
+    perm = np.lexsort((_morton(q), sid)).astype(np.int64)
+    # a group never spans two sources
+    run = np.flatnonzero(np.diff(sid[perm])) + 1
+    edges = [np.arange(a, b, size) for a, b in zip(np.r_[0, run], np.r_[run, P.shape[0]])]
+    return perm, np.append(np.concatenate(edges), P.shape[0]).astype(np.int64)
+
+
+_POOL: list = []
+
+
+def _pool():
+    """Two worker threads for the search, started once (None on one core)."""
     import os
     from concurrent.futures import ThreadPoolExecutor
+    if min(2, os.cpu_count() or 1) < 2:
+        return None
+    if not _POOL:
+        _POOL.append(ThreadPoolExecutor(2, thread_name_prefix="abacus-specular"))
+    return _POOL[0]
 
-    def run(lo, hi):
-        c = max(256, cap * (hi - lo) // max(S.shape[0], 1))
+
+def _search_split(V, F, N, S, P, tol, blocks, cap, allowed, tight):
+    """The blocked search (:func:`_candidates_tree`) with the pairs' groups split across two
+    threads (the kernel releases the GIL); the rows come back in the order of
+    :func:`_candidates` (pair, then facet in block order), whatever the split."""
+    perm, groups = _pair_groups(S, P)
+
+    def run(g0, g1):
+        c = max(256, cap * (groups[g1] - groups[g0]) // max(S.shape[0], 1))
         while True:
             pair = np.empty(c, np.int64)
             face = np.empty(c, np.int64)
             st = np.empty((c, 2))
-            k = _candidates_blocked(V, F, N, S[lo:hi], P[lo:hi], tol, *blocks, allowed, 0.1, c,
-                                    pair, face, st)
+            pos = np.empty(c, np.int64)
+            k = _candidates_tree(V, F, N, S, P, tol, *blocks, allowed, tight, perm,
+                                 groups[g0:g1 + 1], c, pair, face, st, pos)
             if k <= c:
-                return pair[:k] + lo, face[:k], st[:k]
+                return pair[:k], face[:k], st[:k], pos[:k]
             c = k
 
-    n = S.shape[0]
-    parts = min(2, os.cpu_count() or 1) if n >= 64 else 1
-    cuts = np.linspace(0, n, parts + 1).astype(int)
-    if parts == 1:
-        return run(0, n)
-    with ThreadPoolExecutor(parts) as pool:
-        out = list(pool.map(lambda i: run(cuts[i], cuts[i + 1]), range(parts)))
-    return tuple(np.concatenate(col) for col in zip(*out))
+    n_g = groups.size - 1
+    pool = _pool() if S.shape[0] >= 64 and n_g >= 2 else None
+    if pool is None:
+        out = [run(0, n_g)]
+    else:
+        # two runs of groups with about as many pairs each
+        cut = int(np.clip(np.searchsorted(groups, S.shape[0] // 2), 1, n_g - 1))
+        out = list(pool.map(lambda ab: run(*ab), ((0, cut), (cut, n_g))))
+    pair, face, st, pos = (np.concatenate(col) for col in zip(*out))
+    o = np.lexsort((pos, pair))
+    return pair[o], face[o], st[o]
 
 
 def _window_blocks(blocks, window):
@@ -521,9 +943,12 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
     search_tolerance : float
         Facets are searched this fraction beyond their edges (points found twice are merged).
     cull : bool
-        Skip blocks of 16 neighbouring facets whose normals cannot meet the legs' bisector
-        (a conservative bound with a 0.1 rad margin); False tests every facet (the reference
-        the tests compare with).
+        Skip blocks of 16 neighbouring facets, and nodes of blocks, where the legs' bisector
+        cannot meet the surface normal (a bound, not an approximation: the bounce points are
+        those of the exhaustive search; with Newton steps on the mesh, a tight bound that
+        also leaves out facets whose candidates would fail the residual test, else a 0.1 rad
+        margin around the blocks' normal cones); False tests every facet (the reference the
+        tests compare with).
     window : (ndarray (3,), ndarray (3, 3), (az_lo, az_hi, el_lo, el_hi)), optional
         Search only blocks of facets that reach into this angular window (rad) seen from its
         origin (m), directions in the axes of the rotation's columns (a transmitter's fan:
@@ -551,6 +976,12 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
     if not (np.all(np.isfinite(S)) and np.all(np.isfinite(P))):
         raise ValueError("specular_points: sources and receivers must be finite")
     cap = max(256, 32 * S.shape[0])      # a wavy sea: a few glints per pair
+    rot = None
+    if height_field is not None:
+        f_hf, place = height_field
+        rot, shift = np.asarray(place, float)[:3, :3], np.asarray(place, float)[:3, 3]
+        if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-9):
+            rot = None                        # scaled: the mesh is the best we have
     blocks = _blocks_of(V, F, N, np.asarray(normals, float)) if cull else None
     if blocks is None:
         while True:
@@ -566,14 +997,11 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
         allowed = np.ones(blocks[1].size - 1, np.uint8)
         if window is not None:
             allowed = _window_blocks(blocks, window)
-        pair, face, st = _search_split(V, F, N, S, P, search_tolerance, blocks, cap, allowed)
+        # the tight bound holds for points refined on the mesh's smooth surface and tested
+        tight = rot is None and newton_iterations > 0
+        pair, face, st = _search_split(V, F, N, S, P, search_tolerance, blocks, cap, allowed,
+                                       tight)
     Sq, Pq = S[pair], P[pair]
-    rot = None
-    if height_field is not None:
-        f_hf, place = height_field
-        rot, shift = np.asarray(place, float)[:3, :3], np.asarray(place, float)[:3, 3]
-        if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-9):
-            rot = None                        # scaled: the mesh is the best we have
     if rot is not None:
         # Newton on the exact surface in its own frame, from the facet's estimate
         Vo = (V - shift) @ rot
@@ -620,7 +1048,11 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
         legs = [(r, u @ rot.T) for r, u in legs]
         (r_s, u_s), (r_p, u_p) = legs
     else:
-        for _ in range(newton_iterations):
+        if blocks is not None:
+            # the searched path's steps in a compiled loop; the exhaustive reference below
+            st = _newton_on_mesh(V, F, N, face, np.ascontiguousarray(st), Sq, Pq,
+                                 newton_iterations)
+        for _ in range(newton_iterations if blocks is None else 0):
             x, n, tan, hess, grad, legs, bn, _ = _geometry(V, F, N, face, st, Sq, Pq)
             det = hess[:, 0, 0] * hess[:, 1, 1] - hess[:, 0, 1] * hess[:, 1, 0]
             ok = np.abs(det) > 0
@@ -654,16 +1086,7 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
     scale = np.linalg.norm(V[F[face[idx], 1]] - V[F[face[idx], 0]], axis=1)
     order = np.lexsort((r_s[idx] + r_p[idx], pair[idx]))
     idx, scale = idx[order], scale[order]
-    uniq = []
-    for i, j in enumerate(idx):
-        dup = False
-        for u in uniq[-8:]:
-            if pair[u] == pair[j] and np.linalg.norm(x[u] - x[j]) < 1e-3 * scale[i] + 1e-9:
-                dup = True
-                break
-        if not dup:
-            uniq.append(j)
-    idx = np.asarray(uniq, int)
+    idx = idx[_merge_repeats(pair[idx], np.ascontiguousarray(x[idx]), scale)]
     sign = np.where(cs[idx] > 0, 1.0, -1.0)
     nrm = n[idx] * sign[:, None]
     cos_inc = np.abs(cs[idx])

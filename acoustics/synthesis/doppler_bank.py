@@ -33,10 +33,12 @@ import numpy as np
 import scipy.fft as sfft
 
 from acoustics.synthesis.arrivals import BLOCK as _BLOCK
+from acoustics.synthesis.arrivals import add_split as _add_split
 from acoustics.synthesis.arrivals import add_taps as _add_taps
 from acoustics.synthesis.arrivals import kernel_inputs as _kernel_inputs
 from acoustics.synthesis.arrivals import pair as _pair
 from acoustics.synthesis.arrivals import pair_block as _pair_block
+from acoustics.synthesis.arrivals import tap_kernel as _tap_kernel
 
 __all__ = ["bank_nodes", "bank_error_db", "bank_weights", "bank_replicas", "spread_bank",
            "MAX_NODES"]
@@ -167,12 +169,17 @@ def _spread_bank(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv
                               ar * wim[s, j] + ai * wre[s, j], tau, t0, fs, q0, table, dtable,
                               lo, hi)
         return out
-    # the far-field loop on its own: a branch inside the parallel loop slows it (as _spread)
+    # the far-field loop on its own: a branch inside the parallel loop slows it (as _spread);
+    # an arrival's kernel found once for its G trains, each summed as two real trains
+    taps = table.shape[1]
     for n in nb.prange(n_r):
         cx, cy, cz = c[n, 0], c[n, 1], c[n, 2]
         ex0, ex1, ey0, ey1 = ex[n, 0], ex[n, 1], ey[n, 0], ey[n, 1]
         kw, kh = hkw[n], hkh[n]
         buf = np.empty(3 * _BLOCK)
+        k = np.empty(taps)
+        rre = np.zeros((n_g, n_alloc))
+        rim = np.zeros((n_g, n_alloc))
         for s0 in range(0, n_s, _BLOCK):
             s1 = min(s0 + _BLOCK, n_s)
             _pair_block(px[s0:s1], py[s0:s1], pz[s0:s1], fre[s0:s1], fim[s0:s1], r1[s0:s1],
@@ -181,11 +188,16 @@ def _spread_bank(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv
             for i in range(s1 - s0):
                 s = s0 + i
                 ar, ai = buf[i], buf[_BLOCK + i]
-                tau = buf[2 * _BLOCK + i] - shift[s]
+                base = _tap_kernel(buf[2 * _BLOCK + i] - shift[s], t0, fs, q0, table, dtable,
+                                   lo, hi, k)
+                if base < 0:
+                    continue
                 for j in range(n_g):
-                    _add_taps(out[j, n], ar * wre[s, j] - ai * wim[s, j],
-                              ar * wim[s, j] + ai * wre[s, j], tau, t0, fs, q0, table, dtable,
-                              lo, hi)
+                    _add_split(rre[j], rim[j], base, ar * wre[s, j] - ai * wim[s, j],
+                               ar * wim[s, j] + ai * wre[s, j], k)
+        for j in range(n_g):
+            for m in range(n_alloc):
+                out[j, n, m] = complex(rre[j, m], rim[j, m])
     return out
 
 
