@@ -1290,7 +1290,7 @@ def scaling():
             + "A whole floor's memory grows with its facets (≈ 0.94 kB a facet: the mesh, the "
               "caster's planes, Embree's BVH, the specular search's normals and blocks); a tiled "
               "floor's is bounded by the setting (a built tile ≈ 170 B a facet, the search's blocks "
-              "of the last 4 tiles ≈ 270 B a facet, measured), whatever the floor's size. Time grows with the specular search "
+              "of the last 4 tiles ≈ 330 B a facet, measured), whatever the floor's size. Time grows with the specular search "
               "(targets x facets, culled) more than with the rays; in tiles it grows too with "
               "the tiles built again each ping when the setting holds fewer than the fan reaches. "
               "The fish cost the search linearly once they outnumber the fixed costs.")

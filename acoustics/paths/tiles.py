@@ -49,9 +49,9 @@ _FLOOR_PING = 2**31 - 3
 #: of 12 queried tiles of 131k facets)
 _FACET_BYTES = 170.0
 #: bytes a facet of the meshes the specular search keeps its blocks of facets for (the last
-#: 4 it searched, acoustics/paths/specular.py): the blocks (217 B measured) and the tile's
-#: arrays they keep alive once the tile is evicted
-_SEARCH_FACET_BYTES = 270.0
+#: 4 it searched, acoustics/paths/specular.py): the blocks and their tree (275 B measured) and
+#: the tile's arrays they keep alive once the tile is evicted (≈ 55 B)
+_SEARCH_FACET_BYTES = 330.0
 #: meshes whose blocks the specular search keeps
 _SEARCH_KEPT = 4
 
