@@ -1137,7 +1137,6 @@ tiles = None
 if is_tiled(floor):
     tiles = {"n_tiles": floor.n_tiles, "builds_per_ping": (floor.builds - builds0) / pings,
              "peak_cached_mb": floor.peak_cached_bytes / 1e6, "memory_mb": floor.memory_bytes / 1e6,
-             "reserve_mb": floor.reserve_bytes / 1e6,
              "tile_facets": int(floor.face_start[1])}
 print(json.dumps({"ping_s": sum(st.values()) / pings, "first_s": t_first, "stages_s": st,
                   "pings": pings, "tiles": tiles,
@@ -1253,19 +1252,23 @@ def scaling():
     import shutil
     shutil.rmtree(tmp, ignore_errors=True)
     big = next((r for f, r in tiled if f > 5e6 and r and "ping_s" in r), None)
+    # a whole floor's memory a facet: the slope of peak RSS between its two largest points
+    (f1, r1), (f2, r2) = by_facets[-2], by_facets[-1]
+    kb = ((r2["peak_rss_mb"] - r1["peak_rss_mb"]) * 1e3 / (f2 - f1)
+          if r1 and r2 and "peak_rss_mb" in r1 and "peak_rss_mb" in r2 else float("nan"))
     if big is not None:
         tl = big["tiles"]
         note = (f"**10⁷ facets within a stated memory.** With `effects.floor_tiles: {{memory_mb: "
                 f"{_SCALE_TILE_MB}}}` the {tiled[-1][0]:,}-facet floor is never held whole: "
                 f"{tl['n_tiles']} tiles of {tl['tile_facets']:,} facets (`tile_vertices` 513) are "
                 f"built as the rays and the specular search reach them and evicted least recently "
-                f"used; the built tiles peaked at {tl['peak_cached_mb']:.0f} MB and "
-                f"{tl['reserve_mb']:.0f} MB were reserved for the specular search's blocks of the "
-                f"last 4 tiles it searched (together at most the setting, {tl['memory_mb']:.0f} MB), "
-                f"{tl['builds_per_ping']:.0f} tiles were built again per ping, and the process "
+                f"used; the built tiles (with their specular search blocks) peaked at "
+                f"{tl['peak_cached_mb']:.0f} MB by their account (the setting: {tl['memory_mb']:.0f} "
+                f"MB), {tl['builds_per_ping']:.0f} tiles were built again per ping, and the process "
                 f"peaked at {big['peak_rss_mb']:,.0f} MB (the floor, the sea, the school, the "
                 f"synthesis and the runtime; the budget's estimate is in the table) against "
-                f"≈ 9.4 GB for this floor held whole (0.94 kB a facet, the whole-floor rows). ")
+                f"≈ {kb * tiled[-1][0] / 1e6:.0f} GB for this floor held whole ({kb:.2f} kB a "
+                f"facet, the whole-floor rows). ")
     else:
         note = "**The 10⁷-facet tiled point did not finish (the table says why).** "
     return ("## The hard survey at scale: facets and fish\n\n"
@@ -1287,10 +1290,10 @@ def scaling():
             + "\n\n![time per ping and peak memory against facets and fish]"
               "(figures/hard_survey_scaling.png)\n\n"
             + note
-            + "A whole floor's memory grows with its facets (≈ 0.94 kB a facet: the mesh, the "
+            + f"A whole floor's memory grows with its facets (≈ {kb:.2f} kB a facet: the mesh, the "
               "caster's planes, Embree's BVH, the specular search's normals and blocks); a tiled "
-              "floor's is bounded by the setting (a built tile ≈ 170 B a facet, the search's blocks "
-              "of the last 4 tiles ≈ 330 B a facet, measured), whatever the floor's size. Time grows with the specular search "
+              "floor's is bounded by the setting (a built tile ≈ 450 B a facet with its search "
+              "blocks, measured), whatever the floor's size. Time grows with the specular search "
               "(targets x facets, culled) more than with the rays; in tiles it grows too with "
               "the tiles built again each ping when the setting holds fewer than the fan reaches. "
               "The fish cost the search linearly once they outnumber the fixed costs.")

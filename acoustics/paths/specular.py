@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-__all__ = ["SpecularPoints", "specular_points", "vertex_normals"]
+__all__ = ["SpecularPoints", "specular_points", "search_blocks", "vertex_normals"]
 
 
 @dataclass(frozen=True)
@@ -642,6 +642,14 @@ def _blocks_of(V, F, N, normals):
     return blocks
 
 
+def search_blocks(vertices, faces, normals):
+    """The blocks of facets (and their tree) :func:`specular_points` culls with, for a caller
+    that keeps them with its mesh (its ``blocks`` argument)."""
+    return _blocks(np.ascontiguousarray(np.asarray(vertices, float)),
+                   np.ascontiguousarray(np.asarray(faces, np.int64)),
+                   np.ascontiguousarray(_unit(np.asarray(normals, float))))
+
+
 def _unit(x):
     n = np.linalg.norm(x, axis=-1, keepdims=True)
     return x / np.where(n > 0, n, 1.0)
@@ -921,7 +929,7 @@ def _window_blocks(blocks, window):
 def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenumber=None,
                     newton_iterations: int = 8, focusing_limit_db: float = 20.0,
                     search_tolerance: float = 0.1, height_field=None,
-                    cull: bool = True, window=None) -> SpecularPoints:
+                    cull: bool = True, window=None, blocks=None) -> SpecularPoints:
     """Every one-bounce specular path off a mesh for each source–receiver pair.
 
     Parameters
@@ -958,6 +966,9 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
         its own frame, and the rigid placement of that frame in the mesh's. Bounce points are
         then refined, and their levels taken, on it (the mesh only finds them and, with its
         facets, decides visibility): exact at any mesh resolution.
+    blocks : object, optional
+        The mesh's :func:`search_blocks`, kept by the caller (a floor's tiles keep theirs,
+        acoustics/paths/tiles.py); default: made here and cached for the last 4 meshes.
 
     Returns
     -------
@@ -982,7 +993,10 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
         rot, shift = np.asarray(place, float)[:3, :3], np.asarray(place, float)[:3, 3]
         if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-9):
             rot = None                        # scaled: the mesh is the best we have
-    blocks = _blocks_of(V, F, N, np.asarray(normals, float)) if cull else None
+    if cull:
+        blocks = blocks if blocks is not None else _blocks_of(V, F, N, np.asarray(normals, float))
+    else:
+        blocks = None
     if blocks is None:
         while True:
             pair = np.empty(cap, np.int64)

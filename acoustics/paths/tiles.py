@@ -34,7 +34,7 @@ import numpy as np
 
 from acoustics.seeds import ping_rng
 
-__all__ = ["FloorTiles", "Tile", "TileMemoryError", "tile_bytes", "search_reserve_bytes", "is_tiled"]
+__all__ = ["FloorTiles", "Tile", "TileMemoryError", "tile_bytes", "is_tiled"]
 
 #: most vertices of a tiled floor (its set-up pass over the heights takes ≈ 1 s per 10⁶)
 MAX_TILED_VERTICES = 10**8
@@ -46,14 +46,9 @@ _KERNEL_REACH = 4.0
 _FLOOR_PING = 2**31 - 3
 #: bytes a facet of a built tile holds: its vertices and vertex normals (float64, float32 for
 #: Embree), faces (int64, int32 for Embree), face planes and Embree's BVH (166 B measured: RSS
-#: of 12 queried tiles of 131k facets)
-_FACET_BYTES = 170.0
-#: bytes a facet of the meshes the specular search keeps its blocks of facets for (the last
-#: 4 it searched, acoustics/paths/specular.py): the blocks and their tree (275 B measured) and
-#: the tile's arrays they keep alive once the tile is evicted (≈ 55 B)
-_SEARCH_FACET_BYTES = 330.0
-#: meshes whose blocks the specular search keeps
-_SEARCH_KEPT = 4
+#: of 12 queried tiles of 131k facets), and the specular search's blocks of facets and their
+#: tree (275 B measured), kept with the tile
+_FACET_BYTES = 170.0 + 280.0
 
 
 class TileMemoryError(ValueError):
@@ -68,12 +63,6 @@ def is_tiled(mesh) -> bool:
 def tile_bytes(tile_vertices: int) -> float:
     """Memory (bytes) of one built tile of ``tile_vertices`` a side."""
     return 2.0 * (tile_vertices - 1) ** 2 * _FACET_BYTES
-
-
-def search_reserve_bytes(tile_facets: float, n_tiles: int) -> float:
-    """Memory (bytes) the specular search's blocks of the last tiles it searched hold, which a
-    floor's setting reserves before it holds tiles."""
-    return min(_SEARCH_KEPT, int(n_tiles)) * float(tile_facets) * _SEARCH_FACET_BYTES
 
 
 def _kernel(resolution_m: float, correlation_m: float) -> np.ndarray:
@@ -145,6 +134,8 @@ class Tile:
     """The tile's first facet in the floor's numbering."""
     embree: object
     """Its Embree scene."""
+    blocks: object = None
+    """Its blocks of facets for the specular search (made at its first search)."""
 
     @property
     def nbytes(self) -> float:
@@ -207,15 +198,12 @@ class FloorTiles:
                            for i0, i1 in self._ix], np.int64)
         self.face_start = np.concatenate([[0], np.cumsum(counts)])
         self.n_faces = int(self.face_start[-1])
-        biggest = tile_bytes_of(int(counts.max()))
-        self.reserve_bytes = search_reserve_bytes(int(counts.max()), self.n_tiles)
-        if biggest + self.reserve_bytes > self.memory_bytes:
-            least = biggest + self.reserve_bytes
+        least = tile_bytes_of(int(counts.max()))
+        if least > self.memory_bytes:
             raise TileMemoryError(
                 f"effects.floor_tiles.memory_mb = {memory_mb:g} cannot hold one tile of {key} "
-                f"(≈ {least / 1e6:.3g} MB at tile_vertices {t}, with the specular search's blocks "
-                f"of the last {min(_SEARCH_KEPT, self.n_tiles)} tiles searched): raise memory_mb "
-                f"to at least {least / 1e6:.3g} or lower effects.floor_tiles.tile_vertices")
+                f"(≈ {least / 1e6:.3g} MB at tile_vertices {t}): raise memory_mb to at least "
+                f"{least / 1e6:.3g} or lower effects.floor_tiles.tile_vertices")
         self._kernel = _kernel(res, spec.correlation_length_m) if spec.rms_height_m > 0 else None
         self.cache: OrderedDict[int, Tile] = OrderedDict()
         self.cached_bytes = 0.0
@@ -318,7 +306,7 @@ class FloorTiles:
             self.cache.move_to_end(k)
             return t
         need = tile_bytes_of(int(self.face_start[k + 1] - self.face_start[k]))
-        while self.cache and self.cached_bytes + need + self.reserve_bytes > self.memory_bytes:
+        while self.cache and self.cached_bytes + need > self.memory_bytes:
             _, old = self.cache.popitem(last=False)
             self.cached_bytes -= old.nbytes
         t = self._build(k)
@@ -382,12 +370,14 @@ class FloorTiles:
         the tiles the window reaches (all without one), facets numbered in the whole floor,
         rows sorted by pair then path length, a point found in two tiles (on their shared
         edge) kept once, as the whole mesh's search keeps it."""
-        from acoustics.paths.specular import SpecularPoints, specular_points
+        from acoustics.paths.specular import SpecularPoints, search_blocks, specular_points
         parts = []
         for k in self.visit_order(self.tiles_in_window(window)):
             t = self.tile(k)
+            if t.blocks is None and kw.get("cull", True):
+                t.blocks = search_blocks(t.vertices, t.faces, t.normals)
             sp = specular_points(t.vertices, t.faces, t.normals, sources_m, receivers_m,
-                                 window=window, **kw)
+                                 window=window, blocks=t.blocks, **kw)
             if len(sp):
                 scale = np.linalg.norm(t.vertices[t.faces[sp.face, 1]] - t.vertices[t.faces[sp.face, 0]], axis=1)
                 parts.append((sp, sp.face + t.face_start, scale))

@@ -12,9 +12,9 @@ instead of dying half-way with an allocation error. The terms, in bytes:
                   Huygens directivity one complex number per scatterer and element;
 ``schools``       drawing a school (random sequential adsorption): its candidates, k-d trees and
                   the kept draws (up to 17), ≈ 800 bytes a fish;
-``meshes``        faces x 1000 (vertices, faces, normals, the caster's planes, Embree's copy and
-                  BVH, the specular search's vertex normals and blocks: the hard survey's peak
-                  grows 0.94 kB a floor facet from 10⁶ to 3·10⁶, docs/performance.md,
+``meshes``        faces x 1300 (vertices, faces, normals, the caster's planes, Embree's copy and
+                  BVH, the specular search's vertex normals, blocks and their tree: the hard
+                  survey's peak grows 1.2 kB a floor facet from 10⁶ to 3·10⁶, docs/performance.md,
                   "scaling"); the faces of a file
                   come from its header before it is read (STL, PLY, OFF, .npy grids), else from
                   its size (:func:`acoustics.paths.meshes.mesh_file_faces`); procedural shapes
@@ -44,7 +44,7 @@ __all__ = ["estimate_scene", "mesh_faces", "tiled_floor_bytes", "mesh_face_key",
            "motion_rows"]
 
 _SCATTERER_BYTES = 200.0
-_FACE_BYTES = 1000.0
+_FACE_BYTES = 1300.0
 _SCHOOL_FISH_BYTES = 800.0
 _MOTION_ROW_BYTES = 5 * 8 * 6.0
 #: what no estimate exceeds (a count of 1e300 is "too many", not an OverflowError)
@@ -104,11 +104,9 @@ def tiled_floor_bytes(scene, spec) -> float | None:
     shape = spec.mesh
     if tiles.memory_mb is None or getattr(shape, "shape", "") != "rough_floor":
         return None
-    from acoustics.paths.tiles import search_reserve_bytes, tile_bytes
+    from acoustics.paths.tiles import tile_bytes
     t = int(tiles.tile_vertices)
-    tile_faces = 2.0 * (t - 1) ** 2
-    n = mesh_faces(spec)
-    whole = n * tile_bytes(t) / tile_faces + search_reserve_bytes(min(tile_faces, n), math.ceil(n / tile_faces))
+    whole = mesh_faces(spec) * tile_bytes(t) / (2.0 * (t - 1) ** 2)
     half = math.ceil(4.0 * shape.correlation_length_m / shape.resolution_m) if shape.rms_height_m > 0 else 0
     build = (t + 2) ** 2 * 3 * 8 * 4 + (t + 2 * half) ** 2 * 8 * 3
     return _finite(min(float(tiles.memory_mb) * 1e6, whole) + build)
