@@ -1162,7 +1162,7 @@ def _scaled_scene(text, *, facets=None, fish=None, tiles_mb=None):
     if tiles_mb is not None:
         line = "  reverberation: {enabled: true, rays_per_square_degree: 100}\n"
         assert line in text
-        text = text.replace(line, line + f"  floor_tiles: {{memory_mb: {tiles_mb}}}\n")
+        text = text.replace(line, line + f"  floor_tiles: {{enabled: true, memory_mb: {tiles_mb}}}\n")
     return text
 
 
@@ -1258,8 +1258,8 @@ def scaling():
           if r1 and r2 and "peak_rss_mb" in r1 and "peak_rss_mb" in r2 else float("nan"))
     if big is not None:
         tl = big["tiles"]
-        note = (f"**10⁷ facets within a stated memory.** With `effects.floor_tiles: {{memory_mb: "
-                f"{_SCALE_TILE_MB}}}` the {tiled[-1][0]:,}-facet floor is never held whole: "
+        note = (f"**10⁷ facets within a stated memory.** With `effects.floor_tiles: {{enabled: true, "
+                f"memory_mb: {_SCALE_TILE_MB}}}` the {tiled[-1][0]:,}-facet floor is never held whole: "
                 f"{tl['n_tiles']} tiles of {tl['tile_facets']:,} facets (`tile_vertices` 513) are "
                 f"built as the rays and the specular search reach them and evicted least recently "
                 f"used; the built tiles (with their specular search blocks) peaked at "

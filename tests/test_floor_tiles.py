@@ -141,7 +141,7 @@ def _survey(memory_mb, fish=20):
     text = text.replace("count: 1000", f"count: {fish}").replace("resolution_m: 0.25", "resolution_m: 1.0")
     text = text.replace("  reverberation: {enabled: true, rays_per_square_degree: 100}\n",
                         "  reverberation: {enabled: true, rays_per_square_degree: 100}\n"
-                        f"  floor_tiles: {{memory_mb: {memory_mb}, tile_vertices: 17}}\n")
+                        f"  floor_tiles: {{enabled: true, memory_mb: {memory_mb}, tile_vertices: 17}}\n")
     text = text.replace("  specular: {beam_level_db: -20.0}\n", "")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -172,7 +172,7 @@ def test_the_setting_is_validated():
     from acoustics.scene import SceneError, scene_from_text
     text = (ROOT / "scenes" / "default.yaml").read_text()
     with pytest.raises(SceneError) as err:
-        scene_from_text(text + "\neffects:\n  floor_tiles: {memory_mb: -5}\n"
+        scene_from_text(text + "\neffects:\n  floor_tiles: {enabled: true, memory_mb: -5}\n"
                         if "\neffects:" not in text else
-                        text.replace("\neffects:\n", "\neffects:\n  floor_tiles: {memory_mb: -5}\n", 1))
+                        text.replace("\neffects:\n", "\neffects:\n  floor_tiles: {enabled: true, memory_mb: -5}\n", 1))
     assert "floor_tiles.memory_mb" in str(err.value)

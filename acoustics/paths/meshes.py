@@ -508,7 +508,7 @@ class MeshSources:
     seed : int
         The scene's seed (rough floors, sea surfaces).
     floor_tiles : FloorTilesSpec, optional
-        ``effects.floor_tiles``: rough floors streamed in tiles when its ``memory_mb`` is set
+        ``effects.floor_tiles``: rough floors streamed in tiles when it is enabled
         (acoustics/paths/tiles.py); None: built whole.
     """
 
@@ -547,7 +547,7 @@ def scene_meshes(sources: MeshSources, pose: Pose) -> list[SceneMesh]:
         if spec.frame == "world":
             mat[:3, :3] = pose.rotation.T
             mat[:3, 3] = -pose.rotation.T @ pose.position_m
-        if tiles is not None and tiles.memory_mb is not None and spec.mesh.shape == "rough_floor":
+        if tiles is not None and tiles.enabled and spec.mesh.shape == "rough_floor":
             # streamed in tiles (acoustics/paths/tiles.py), never built whole
             from acoustics.paths.tiles import FloorTiles, TileMemoryError
             try:

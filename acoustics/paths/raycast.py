@@ -26,7 +26,7 @@ import numpy as np
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
-__all__ = ["Hits", "RayCaster", "face_planes"]
+__all__ = ["Hits", "RayCaster"]
 
 _MIN_CHUNK = 32_768
 
@@ -77,21 +77,6 @@ def _refine(face, o, d, face_plane, face_mesh, limit, out_face, out_mesh, out_t,
         out_p[i, 0] = o[i, 0] + tt * ux
         out_p[i, 1] = o[i, 1] + tt * uy
         out_p[i, 2] = o[i, 2] + tt * uz
-
-
-def face_planes(vertices, faces) -> np.ndarray:
-    """Rows (unit face normal, n·v0), shape (n_f, 4), of a mesh's facets (the float64 planes
-    hits are refined on)."""
-    v = np.asarray(vertices, float)
-    f = np.asarray(faces, np.int64)
-    tri = v[f]
-    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    norm = np.linalg.norm(n, axis=1)
-    n = n / np.where(norm > 0, norm, 1.0)[:, None]
-    out = np.empty((f.shape[0], 4))
-    out[:, :3] = n
-    out[:, 3] = np.einsum("ij,ij->i", n, tri[:, 0])
-    return out
 
 
 @dataclass(frozen=True)
@@ -155,11 +140,11 @@ class RayCaster:
         self.meshes = list(meshes)
         if not self.meshes:
             raise ValueError("a ray caster needs at least one mesh")
-        from acoustics.paths.tiles import is_tiled
         verts, faces, owner, normal, v0 = [], [], [], [], []
         offset = 0
         self._per_mesh = {}
-        tiled = np.array([is_tiled(sm.mesh) for sm in self.meshes])
+        # a floor in tiles (acoustics/paths/tiles.py.FloorTiles) says so
+        tiled = np.array([bool(getattr(sm.mesh, "tiled", False)) for sm in self.meshes])
         for i, sm in enumerate(self.meshes):
             if tiled[i]:
                 continue

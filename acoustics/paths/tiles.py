@@ -1,7 +1,7 @@
 """A generated rough floor in tiles, built on demand and held in a cache of bounded memory.
 
 A ``rough_floor`` of 10⁷ facets held whole costs ≈ 1.5 kB a facet (its mesh, the caster's copy,
-Embree's BVH, the specular search's blocks): 15 GB. With ``effects.floor_tiles.memory_mb`` set,
+Embree's BVH, the specular search's blocks): 15 GB. With ``effects.floor_tiles.enabled``,
 the floor is never held whole. Its grid of vertices is cut into square tiles of
 ``tile_vertices`` per side (neighbours share their edge vertices, so every facet lies in exactly
 one tile); a tile is generated, meshed and given its Embree scene when a ray batch, a segment or
@@ -57,7 +57,7 @@ class TileMemoryError(ValueError):
 
 def is_tiled(mesh) -> bool:
     """Whether a SceneMesh's ``mesh`` is a :class:`FloorTiles` (not a trimesh)."""
-    return isinstance(mesh, FloorTiles)
+    return bool(getattr(mesh, "tiled", False))
 
 
 def tile_bytes(tile_vertices: int) -> float:
@@ -117,6 +117,21 @@ def _rays_in_boxes(o, u, reach, lo, hi, pad, out_count, out_idx, cap):
     return k
 
 
+def face_planes(vertices, faces) -> np.ndarray:
+    """Rows (unit face normal, n·v0), shape (n_f, 4), of a mesh's facets (the float64 planes
+    hits are refined on, as acoustics/paths/raycast.py's RayCaster makes them)."""
+    v = np.asarray(vertices, float)
+    f = np.asarray(faces, np.int64)
+    tri = v[f]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norm = np.linalg.norm(n, axis=1)
+    n = n / np.where(norm > 0, norm, 1.0)[:, None]
+    out = np.empty((f.shape[0], 4))
+    out[:, :3] = n
+    out[:, 3] = np.einsum("ij,ij->i", n, tri[:, 0])
+    return out
+
+
 @dataclass(eq=False)
 class Tile:
     """One built tile: its mesh in the sonar frame and what queries need."""
@@ -170,6 +185,9 @@ class FloorTiles:
     TileMemoryError
         ``memory_mb`` cannot hold one tile.
     """
+
+    #: what the ray caster asks of a mesh to treat it as tiles
+    tiled = True
 
     def __init__(self, spec, seed: int, placement, *, memory_mb: float, tile_vertices: int = 513,
                  key: str = "boundaries[?]", robust: bool = True):
@@ -279,7 +297,6 @@ class FloorTiles:
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
 
-        from acoustics.paths.raycast import face_planes
         from acoustics.paths.specular import vertex_normals
         i0, i1, j0, j1 = self._window(k)
         # one vertex of halo on each side that has a neighbour: vertex normals as the whole mesh's

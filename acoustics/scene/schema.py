@@ -169,12 +169,13 @@ class ArrivalsSpec(ConfigModel):
 class FloorTilesSpec(ConfigModel):
     """A generated floor (``rough_floor``) streamed in tiles through the ray caster and the
     specular search, the built tiles' memory bounded (acoustics/paths/tiles.py;
-    docs/scenes.md, "Large floors"). Off unless ``memory_mb`` is set."""
+    docs/scenes.md, "Large floors")."""
 
-    memory_mb: PositiveReal | None = Field(None, ge=0.01, le=1e7)
-    """Most memory (MB) the built tiles of a floor hold at once; the least recently used are
-    evicted. null: every floor is built whole (and a ``rough_floor`` is limited to 4 million
-    vertices)."""
+    enabled: bool = False
+    """Stream every ``rough_floor`` in tiles (false: built whole, at most 4 million vertices)."""
+    memory_mb: PositiveReal = Field(2000.0, ge=0.01, le=1e7)
+    """Most memory (MB) the built tiles of a floor hold at once, their search blocks
+    included; the least recently used are evicted."""
     tile_vertices: PositiveCount = Field(513, ge=3, le=8193)
     """Vertices along a tile's side (a tile holds 2 (n − 1)² facets)."""
 

@@ -19,7 +19,7 @@ instead of dying half-way with an allocation error. The terms, in bytes:
                   come from its header before it is read (STL, PLY, OFF, .npy grids), else from
                   its size (:func:`acoustics.paths.meshes.mesh_file_faces`); procedural shapes
                   from their keys (a plane's ``segments``, a grid's ``size_m / resolution_m``);
-``floor tiles``   a ``rough_floor`` streamed in tiles (``effects.floor_tiles.memory_mb`` set):
+``floor tiles``   a ``rough_floor`` streamed in tiles (``effects.floor_tiles.enabled``):
                   the tiles held at once, at most the setting (or the whole floor's tiles if
                   fewer), and building one more: its vertices with a halo, the noise the
                   kernel reads (:func:`tiled_floor_bytes`), instead of its faces x 100;
@@ -102,7 +102,7 @@ def tiled_floor_bytes(scene, spec) -> float | None:
     None for a mesh built whole (not a ``rough_floor``, or the setting unset)."""
     tiles = scene.effects.floor_tiles
     shape = spec.mesh
-    if tiles.memory_mb is None or getattr(shape, "shape", "") != "rough_floor":
+    if not tiles.enabled or getattr(shape, "shape", "") != "rough_floor":
         return None
     from acoustics.paths.tiles import tile_bytes
     t = int(tiles.tile_vertices)
