@@ -176,3 +176,21 @@ def test_the_setting_is_validated():
                         if "\neffects:" not in text else
                         text.replace("\neffects:\n", "\neffects:\n  floor_tiles: {enabled: true, memory_mb: -5}\n", 1))
     assert "floor_tiles.memory_mb" in str(err.value)
+
+
+def test_the_estimate_counts_the_setting_not_the_facets():
+    from acoustics.scene import scene_from_text
+    from acoustics.simulation.budget import estimate_scene
+    text = (ROOT / "scenes" / "hard_survey.yaml").read_text().replace("resolution_m: 0.25", "resolution_m: 0.03")
+    line = "  reverberation: {enabled: true, rays_per_square_degree: 100}\n"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        whole = estimate_scene(scene_from_text(text), pings=1)
+        tiled = estimate_scene(scene_from_text(text.replace(
+            line, line + "  floor_tiles: {enabled: true, memory_mb: 1500}\n")), pings=1)
+    # 10⁷ facets: held whole at least 1 kB each (measured 1.2, docs/performance.md); in tiles the
+    # setting and one tile's build
+    assert whole.memory_bytes > 1e10
+    floor = dict(tiled.terms)["floor tiles"]
+    assert 1.5e9 <= floor <= 1.5e9 + 0.1e9
+    assert tiled.largest_driver().key == "effects.floor_tiles.memory_mb"
