@@ -553,3 +553,31 @@ def test_the_block_cull_finds_exactly_what_the_exhaustive_search_finds():
         fast = specular_points(*args, cull=True)
         full = specular_points(*args, cull=False)
         assert len(full) > 0 and key(fast) == key(full)
+
+
+def test_the_tree_search_finds_every_glint_of_a_rough_floor():
+    """On a rough floor (rms slope ~0.1, many glints per pair) the tight block bound, the tree
+    over the blocks and the targets' groups leave out no bounce point of the exhaustive search:
+    a school of targets seen from two sources (so that the groups split where the source
+    changes), the same points to 1e-7 m, the pairs in any order."""
+    rng = np.random.default_rng(5)
+    x, y = np.arange(0.0, 16.01, 0.25), np.arange(-6.0, 6.01, 0.25)
+    X, Y = np.meshgrid(x, y)
+    z = np.zeros_like(X)
+    for _ in range(30):                   # random smooth bumps, 1-3 m across
+        k = rng.uniform(1.5, 5.0) * np.array([np.cos(a := rng.uniform(0, np.pi)), np.sin(a)])
+        z += rng.normal(0, 0.02) * np.cos(k[0] * X + k[1] * Y + rng.uniform(0, 2 * np.pi))
+    z -= 8.0
+    m = _grid_mesh(x, y, z)
+    nrm = vertex_normals(m.vertices, m.faces)
+    school = np.array([8.0, 0.0, -4.0]) + rng.normal(0, 0.8, (40, 3))
+    src = np.repeat([[0.0, 0.0, 0.0], [0.3, 0.1, 0.0]], 20, axis=0)
+    order = rng.permutation(40)
+    fast = specular_points(m.vertices, m.faces, nrm, src[order], school[order], cull=True)
+    full = specular_points(m.vertices, m.faces, nrm, src, school, cull=False)
+    assert np.bincount(full.pair).max() >= 3       # a rough floor: several glints per pair
+
+    def key(sp, pairs):
+        return sorted(zip(pairs[sp.pair].tolist(), np.round(sp.point_m, 7).tolist()))
+
+    assert len(full) > 40 and key(fast, order) == key(full, np.arange(40))

@@ -579,7 +579,8 @@ class RayScene:
         hi = np.searchsorted(r_tgt, t_tgt, "right")
         cnt = hi - lo
         ti = np.repeat(np.arange(t_tgt.size), cnt)
-        ri = np.concatenate([np.arange(a, b) for a, b in zip(lo, hi)]) if ti.size else np.zeros(0, int)
+        # lo[t] .. hi[t] for each transmit leg t, concatenated
+        ri = np.arange(ti.size) - np.repeat(np.cumsum(cnt) - cnt - lo, cnt)
         bounced = (t_nb[ti] + r_nb[ri]) > 0
         ti, ri = ti[bounced], ri[bounced]
         if ti.size == 0:

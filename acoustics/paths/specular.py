@@ -577,14 +577,38 @@ def _blocks(V, F, N, size: int = 16):
     local = (np.searchsorted(uniq, key) - bvstart[owner]).reshape(-1, 3).astype(np.int64)
     # the tight test's spheres: the smooth surface lifts a facet's point by at most half its
     # longest edge times the sine between a vertex normal and the facet's (Phong, α = ½)
-    tri = V[F[order]]
-    fn = _unit(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
-    edge = np.max(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2), axis=1)
-    cos_vf = np.abs(np.einsum("fvj,fj->fv", N[F[order]], fn))
-    sag = 0.5 * edge * np.sqrt(np.clip(1.0 - cos_vf.min(axis=1) ** 2, 0.0, 1.0)) + 1e-6 * edge
+    sag = _facet_sag(V, F, N, order)
     tight_radius = (radius + np.maximum.reduceat(sag, starts[:-1])) * (1 + 1e-9) + 1e-12
     return (order.astype(np.int64), starts, centre, radius, axis, spread, bvert, bvstart,
             np.ascontiguousarray(local), tight_radius, *_tree(centre, tight_radius, axis, spread))
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _facet_sag(V, F, N, order):
+    """Per facet (in ``order``): the most the smooth surface lifts a point of it off its plane,
+    half its longest edge times the largest sine between a vertex normal and the facet's
+    normal (Phong, α = ½), plus 1e-6 of the edge (points found 1e-6 outside it)."""
+    out = np.empty(order.shape[0])
+    for i in range(order.shape[0]):
+        f = order[i]
+        a, b, c = F[f, 0], F[f, 1], F[f, 2]
+        e1 = V[b] - V[a]
+        e2 = V[c] - V[a]
+        e3 = V[c] - V[b]
+        nx = e1[1] * e2[2] - e1[2] * e2[1]
+        ny = e1[2] * e2[0] - e1[0] * e2[2]
+        nz = e1[0] * e2[1] - e1[1] * e2[0]
+        nl = np.sqrt(nx * nx + ny * ny + nz * nz)
+        edge = max(np.sqrt(np.sum(e1 * e1)), np.sqrt(np.sum(e2 * e2)), np.sqrt(np.sum(e3 * e3)))
+        worst = 0.0
+        if nl > 0.0:
+            for v in (a, b, c):
+                cv = abs(N[v, 0] * nx + N[v, 1] * ny + N[v, 2] * nz) / nl
+                worst = max(worst, np.sqrt(max(0.0, 1.0 - cv * cv)))
+        else:
+            worst = 1.0                  # a degenerate facet: any lift up to its size
+        out[i] = 0.5 * edge * worst + 1e-6 * edge
+    return out
 
 
 def _tree(centre, radius, axis, spread, fan: int = 8):
@@ -627,27 +651,30 @@ def _tree(centre, radius, axis, spread, fan: int = 8):
 _BLOCK_CACHE: list = []
 
 
-def _blocks_of(V, F, N, normals):
-    """:func:`_blocks`, cached (``normals``: the caller's array, before it was normalised)."""
+def _blocks_of(V, F, normals):
+    """:func:`_blocks` and the unit normals, cached (``normals``: the caller's array, before
+    it was normalised). Returns (blocks, unit normals)."""
     key = tuple((a.__array_interface__["data"][0], a.shape, float(a.reshape(-1)[::211].sum()))
                 for a in (V, F, normals))
     for i, entry in enumerate(_BLOCK_CACHE):
         if entry[0] == key:
             # most recently used first: a still floor is not pushed out by each ping's new sea
             _BLOCK_CACHE.insert(0, _BLOCK_CACHE.pop(i))
-            return entry[2]
+            return entry[2], entry[3]
+    N = np.ascontiguousarray(_unit(normals))
     blocks = _blocks(V, F, N)
-    _BLOCK_CACHE.insert(0, (key, (V, F, normals), blocks))
+    _BLOCK_CACHE.insert(0, (key, (V, F, normals), blocks, N))
     del _BLOCK_CACHE[4:]
-    return blocks
+    return blocks, N
 
 
 def search_blocks(vertices, faces, normals):
-    """The blocks of facets (and their tree) :func:`specular_points` culls with, for a caller
-    that keeps them with its mesh (its ``blocks`` argument)."""
+    """(blocks, unit normals): the blocks of facets (and their tree) :func:`specular_points`
+    culls with and the normals they were made from, for a caller that keeps them with its
+    mesh (its ``blocks`` argument)."""
+    N = np.ascontiguousarray(_unit(np.asarray(normals, float)))
     return _blocks(np.ascontiguousarray(np.asarray(vertices, float)),
-                   np.ascontiguousarray(np.asarray(faces, np.int64)),
-                   np.ascontiguousarray(_unit(np.asarray(normals, float))))
+                   np.ascontiguousarray(np.asarray(faces, np.int64)), N), N
 
 
 def _unit(x):
@@ -853,8 +880,11 @@ def _pair_groups(S, P, size: int = 16):
     """The pairs in groups for :func:`_candidates_tree`: one source per group and receivers
     close together (runs of ``size`` in Morton order of the receivers). Returns (perm, groups):
     group g is ``perm[groups[g]:groups[g + 1]]``."""
-    _, sid = np.unique(S, axis=0, return_inverse=True)
-    sid = sid.reshape(-1)
+    if (S == S[0]).all():                   # the usual case: one phase centre
+        sid = np.zeros(S.shape[0], np.int64)
+    else:
+        _, sid = np.unique(S, axis=0, return_inverse=True)
+        sid = sid.reshape(-1)
     lo, hi = P.min(axis=0), P.max(axis=0)
     q = ((P - lo) / max(float((hi - lo).max()), 1e-300) * 1023).astype(np.uint64)
     perm = np.lexsort((_morton(q), sid)).astype(np.int64)
@@ -902,9 +932,12 @@ def _search_split(V, F, N, S, P, tol, blocks, cap, allowed, tight):
     if pool is None:
         out = [run(0, n_g)]
     else:
-        # two runs of groups with about as many pairs each
-        cut = int(np.clip(np.searchsorted(groups, S.shape[0] // 2), 1, n_g - 1))
-        out = list(pool.map(lambda ab: run(*ab), ((0, cut), (cut, n_g))))
+        # four runs of groups with about as many pairs each, taken by the two threads as they
+        # come free: on a shared machine one thread may stall, and the other goes on
+        parts = min(4, n_g)
+        cuts = np.unique(np.clip(np.searchsorted(groups, np.arange(parts + 1) * S.shape[0] // parts),
+                                 0, n_g))
+        out = list(pool.map(lambda ab: run(*ab), zip(cuts[:-1], cuts[1:])))
     pair, face, st, pos = (np.concatenate(col) for col in zip(*out))
     o = np.lexsort((pos, pair))
     return pair[o], face[o], st[o]
@@ -966,9 +999,10 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
         its own frame, and the rigid placement of that frame in the mesh's. Bounce points are
         then refined, and their levels taken, on it (the mesh only finds them and, with its
         facets, decides visibility): exact at any mesh resolution.
-    blocks : object, optional
-        The mesh's :func:`search_blocks`, kept by the caller (a floor's tiles keep theirs,
-        acoustics/paths/tiles.py); default: made here and cached for the last 4 meshes.
+    blocks : tuple, optional
+        The mesh's :func:`search_blocks` (blocks, unit normals), kept by the caller (a floor's
+        tiles keep theirs, acoustics/paths/tiles.py); default: made here and cached for the
+        last 4 meshes.
 
     Returns
     -------
@@ -977,7 +1011,6 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
     """
     V = np.ascontiguousarray(np.asarray(vertices, float))
     F = np.ascontiguousarray(np.asarray(faces, np.int64))
-    N = np.ascontiguousarray(_unit(np.asarray(normals, float)))
     S = np.ascontiguousarray(np.asarray(sources_m, float).reshape(-1, 3))
     P = np.ascontiguousarray(np.asarray(receivers_m, float).reshape(-1, 3))
     if S.shape != P.shape:
@@ -993,10 +1026,13 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
         rot, shift = np.asarray(place, float)[:3, :3], np.asarray(place, float)[:3, 3]
         if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-9):
             rot = None                        # scaled: the mesh is the best we have
-    if cull:
-        blocks = blocks if blocks is not None else _blocks_of(V, F, N, np.asarray(normals, float))
+    normals = np.asarray(normals, float)
+    if cull and blocks is not None:
+        blocks, N = blocks                    # the caller's, with the unit normals they were made from
+    elif cull:
+        blocks, N = _blocks_of(V, F, normals)
     else:
-        blocks = None
+        blocks, N = None, np.ascontiguousarray(_unit(normals))
     if blocks is None:
         while True:
             pair = np.empty(cap, np.int64)
