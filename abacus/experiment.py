@@ -25,6 +25,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from processing.base.atomic import write_bytes_atomic, write_text_atomic
 from processing.base.dataset import write_dataset
 from processing.base.resources import usable_cores
@@ -142,11 +144,16 @@ def experiment_plan(scene, sweep: Sweep | None):
     return points
 
 
-def _tasks(points, pings, sweep):
-    """(task id, scene point index, ping, setting indices) — one per simulated ping."""
+def _tasks(points, pings, sweep, track_pings: int | None = None):
+    """(task id, scene point index, pings, setting indices): one per simulated ping, or with
+    ``track_pings`` one per run of that many consecutive pings (the last run may be shorter),
+    which the task simulates together and tracks."""
+    n = int(track_pings) if track_pings else 1
+    runs = [list(pings[i:i + n]) for i in range(0, len(pings), n)]
+    kind = "run" if track_pings else "ping"
     if sweep is None or sweep.processing_only:
-        return [(f"ping{p:06d}", 0, p, list(range(len(points)))) for p in pings]
-    return [(f"point{j:03d}_ping{p:06d}", j, p, [j]) for j in range(len(points)) for p in pings]
+        return [(f"{kind}{r[0]:06d}", 0, r, list(range(len(points)))) for r in runs]
+    return [(f"point{j:03d}_{kind}{r[0]:06d}", j, r, [j]) for j in range(len(points)) for r in runs]
 
 
 # ------------------------------------------------------------------ one task
@@ -164,7 +171,9 @@ def _scene_in_worker(text: str, source: str | None):
 
 
 def run_task(payload: dict) -> dict:
-    """Simulate one ping and evaluate it under the task's settings (runs on a worker).
+    """Simulate the task's pings and evaluate them under the task's settings (runs on a worker);
+    with ``payload["track"]``, also track them under each setting and score the tracks against
+    the truth (:data:`abacus.results.TRACK_KEYS`).
 
     Returns plain numpy arrays and bytes only, so that any Dask worker can send it back.
     """
@@ -185,9 +194,10 @@ def run_task(payload: dict) -> dict:
     settings = [ProcessingSettings.model_validate_json(s) for s in payload["settings"]]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        tree = simulate(scene, pings=[payload["ping"]])
+        tree = simulate(scene, pings=list(payload["pings"]))
         ev = evaluate(tree, settings)
-        figure = _figure_bytes(tree, settings[0], payload["ping"]) if payload.get("figure") else b""
+        tracking = _track_scores(tree, settings) if payload.get("track") else None
+        figure = _figure_bytes(tree, settings[0], payload["pings"][0]) if payload.get("figure") else b""
     from processing.base.dataset import ELEMENT_GROUP
     clipped = tree[ELEMENT_GROUP].ds.get("adc_clipped_samples")
     extra = (["the ADC clipped samples (sampling.adc.bits, sampling.adc.scale_counts)"]
@@ -195,13 +205,38 @@ def run_task(payload: dict) -> dict:
     # one line per kind of warning (the numbers in a message differ from ping to ping)
     notes = sorted({n.split("(")[0].strip()[:200] for n in list(ev["notes"]) + extra
                     + [str(w.message) for w in caught if not issubclass(w.category, SceneWarning)]})
-    prov = tree["Provenance"].ds
-    return {"id": payload["id"], "per_ping": {k: v[:, 0] for k, v in ev["per_ping"].items()},
-            "noise_histogram": ev["noise_histogram"][0], "figure": figure,
+    from processing.base.dataset import stage_seconds
+    if tracking is not None:
+        notes = sorted(set(notes) | set(tracking.pop("notes")))
+    return {"id": payload["id"], "per_ping": ev["per_ping"], "tracking": tracking,
+            "noise_histogram": ev["noise_histogram"], "figure": figure,
             "seconds": time.perf_counter() - t0,
-            "stage_seconds": dict(zip(prov["stage"].values.tolist(),
-                                      prov["stage_seconds"].values.tolist())),
+            "stage_seconds": stage_seconds(tree),
             "notes": notes}
+
+
+def _track_scores(tree, settings) -> dict:
+    """Per setting, the tracks of the task's pings scored against the truth: {key: ndarray
+    (n_settings,)} for every key of :data:`abacus.results.TRACK_KEYS` (NaN without truth, or
+    where the mode has no 3-D positions), and ``notes``."""
+    import processing
+    from processing.base.dataset import DatasetError
+    from processing.tracking.tracks import track_summary
+
+    from abacus.results import TRACK_KEYS
+    out = {k: np.full(len(settings), np.nan) for k in TRACK_KEYS}
+    notes = []
+    for i, st in enumerate(settings):
+        try:
+            summary = track_summary(processing.track(tree, st))["summary"]
+        except DatasetError as exc:
+            notes.append(f"no tracking scores: {str(exc).splitlines()[0]}")
+            continue
+        for k in TRACK_KEYS:
+            v = summary.get(k)
+            out[k][i] = np.nan if v is None else float(v)
+    out["notes"] = notes
+    return out
 
 
 def _figure_bytes(tree, settings, ping) -> bytes:
@@ -214,11 +249,13 @@ def _figure_bytes(tree, settings, ping) -> bytes:
         return Path(paths[0]).read_bytes()
 
 
-def _manifest(points, sweep) -> dict:
+def _manifest(points, sweep, track_pings=None) -> dict:
     man = {"version": RESULTS_VERSION,
            "scene_sha256": [p.scene.sha256() for p in points],
            "settings": [p.settings.model_dump_json(by_alias=True) for p in points],
            "sweep": sweep.text if sweep else None}
+    if track_pings:
+        man["track_pings"] = int(track_pings)
     man["experiment"] = hashlib.sha256(json.dumps(man, sort_keys=True).encode()).hexdigest()
     return man
 
@@ -282,7 +319,8 @@ def _start_folder(out: Path, man: dict, restart: bool):
 # ------------------------------------------------------------------ running
 def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, workers: int | None = None,
                    scheduler: str | None = None, figure_pings: int = 2, fmt: str = "netcdf",
-                   restart: bool = False, progress=None, report: bool = True) -> Path:
+                   restart: bool = False, progress=None, report: bool = True,
+                   track_pings: int | None = None) -> Path:
     """Run (or resume) an experiment and write its dataset and report.
 
     Parameters
@@ -307,6 +345,11 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
     restart : bool
         Discard the parts of an earlier run in ``out_dir``.
     progress : callable(done, total), optional
+    track_pings : int, optional
+        Track runs of this many consecutive pings (each run one task, the last one possibly
+        shorter) and score them as ``abacus track`` does: HOTA, DetA, AssA, LocA, IDF1, MOTA,
+        MOTP and the passages counted and true per run, and per setting the nMAE of the track
+        counts over the runs (Σ|counted − true| / Σ true; Kay et al. 2022). At least 2.
 
     Returns
     -------
@@ -329,6 +372,10 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
         raise ExperimentError("an experiment needs at least one ping")
     if fmt not in ("netcdf", "zarr"):
         raise ExperimentError(f"format must be netcdf or zarr, got {fmt!r}")
+    if track_pings is not None and (isinstance(track_pings, bool) or not isinstance(track_pings, (int, np.integer))
+                                    or not 2 <= track_pings <= len(pings)):
+        raise ExperimentError(f"--track-pings must be a whole number of pings from 2 to the "
+                              f"experiment's {len(pings)}, got {track_pings!r}")
     # the optional extras this run needs, checked before any work (MissingExtra names them)
     from processing.base.extras import require
     if n_workers or scheduler:
@@ -336,7 +383,7 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
     if fmt == "zarr":
         require("zarr", "an experiment's results as Zarr")
     points = experiment_plan(scene, sweep)
-    man = _manifest(points, sweep)
+    man = _manifest(points, sweep, track_pings)
     _check_folder(out, man, restart)
     # the scheduler is reached before the folder is made: one that does not answer leaves nothing
     client = _connect(scheduler) if scheduler else None
@@ -347,7 +394,7 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
             client.close()
         raise
     parts = out / PARTS
-    tasks = _tasks(points, pings, sweep)
+    tasks = _tasks(points, pings, sweep, track_pings)
     from abacus.results import part_state
     states = {t[0]: part_state(parts / f"{t[0]}.npz", man["experiment"]) for t in tasks}
     todo = [t for t in tasks if states[t[0]] != "ok"]
@@ -355,9 +402,10 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
     texts = {j: p.scene.resolved_text() for j, p in enumerate(points)}
     source = str(scene.source_path) if scene.source_path else None
     figs = set(pings[:max(0, figure_pings)])
-    payloads = [{"id": tid, "scene_text": texts[j], "source": source, "ping": p, "threads": threads,
+    payloads = [{"id": tid, "scene_text": texts[j], "source": source, "pings": ps, "threads": threads,
                  "settings": [points[i].settings.model_dump_json(by_alias=True) for i in idx],
-                 "figure": j == 0 and p in figs} for tid, j, p, idx in todo]
+                 "figure": j == 0 and ps[0] in figs, "track": bool(track_pings)}
+                for tid, j, ps, idx in todo]
     t_start = time.perf_counter()
     done = len(tasks) - len(todo)
     if progress:
@@ -379,17 +427,18 @@ def run_experiment(scene, out_dir, *, pings=None, sweep: Sweep | None = None, wo
         "threads_per_task": threads,
         "scheduler": scheduler or ("local" if n_workers else "in-process"),
         "tasks_run": len(todo), "tasks_resumed": len(tasks) - len(todo),
+        "track_pings": int(track_pings or 0),
         "parts_recomputed_damaged": damaged}
     ds = assemble_results(labels=[p.label for p in points], values=[p.value for p in points],
                           pings=pings, tasks=tasks, parts=parts, attrs=attrs,
                           experiment=man["experiment"])
     figdir = out / "figures"
     figdir.mkdir(exist_ok=True)
-    for tid, j, p, _ in tasks:
-        if j == 0 and p in figs:
+    for tid, j, ps, _ in tasks:
+        if j == 0 and ps[0] in figs:
             fig = load_part(parts / f"{tid}.npz", experiment=man["experiment"])["figure"]
             if fig:
-                write_bytes_atomic(figdir / f"detections_ping{p}.png", fig)
+                write_bytes_atomic(figdir / f"detections_ping{ps[0]}.png", fig)
     path = out / ("results.zarr" if fmt == "zarr" else "results.nc")
     write_dataset(ds, path, fmt=fmt, chunk_dim="ping")
     if report:

@@ -324,6 +324,16 @@ def write_report(ds: xr.Dataset, out_dir) -> Path:
         if has_truth:
             summary.append(["true mean σ_bs in the volume (dB re 1 m²)",
                             f"{float(ds['ts_true_db'].isel(setting=0)):.2f}"])
+    if "track_count_nmae" in ds:
+        b = ds.isel(setting=0)
+        summary.append([f"tracks over {ds.sizes['run']} run(s) of {int(ds.attrs.get('track_pings', 0))} "
+                        "pings: passages counted / true", f"{int(np.nansum(b['run_counted_passages']))} / "
+                        f"{int(np.nansum(b['run_true_passages']))}"])
+        summary.append(["nMAE of the track counts over the runs (Σ|counted − true| / Σ true)",
+                        f"{float(b['track_count_nmae']):.3f}"])
+        summary.append(["HOTA, DetA, AssA, LocA, IDF1, MOTA (means over the runs)",
+                        ", ".join(f"{float(b[f'{k}_mean']):.3f}" for k in
+                                  ("hota", "deta", "assa", "loca", "idf1", "mota"))])
     timing = [["wall time (s)", f"{ds.attrs.get('wall_seconds', 0):.1f}"],
               ["workers", ds.attrs.get("workers", "")], ["scheduler", ds.attrs.get("scheduler", "")],
               ["tasks run / resumed", f"{ds.attrs.get('tasks_run', '')} / {ds.attrs.get('tasks_resumed', '')}"],

@@ -19,7 +19,11 @@ import xarray as xr
 from processing.base.atomic import write_bytes_atomic
 from abacus.evaluate import NOISE_BINS, PER_PING_KEYS
 
-__all__ = ["save_part", "load_part", "part_state", "PartError", "assemble_results"]
+__all__ = ["save_part", "load_part", "part_state", "PartError", "assemble_results", "TRACK_KEYS"]
+
+#: what a tracked run of pings gives per setting (``abacus experiment --track-pings``): the
+#: passages counted and true, and the scores of ``abacus track`` (processing/tracking/scores.py)
+TRACK_KEYS = ("counted_passages", "true_passages", "hota", "deta", "assa", "loca", "idf1", "mota", "motp")
 
 
 class PartError(ValueError):
@@ -41,8 +45,9 @@ def save_part(parts: Path, res: dict, *, experiment: str = "") -> Path:
     """Write one task's result (``res`` from the task runner) as ``parts/<id>.npz``, atomically,
     with the experiment's identity (a hash of its scenes, settings and sweep) and a checksum of
     its contents."""
-    arrays = {f"pp_{k}": np.asarray(v) for k, v in res["per_ping"].items()}
-    arrays.update(noise_histogram=np.asarray(res["noise_histogram"]),
+    arrays = {f"pp_{k}": np.atleast_2d(np.asarray(v, float).T).T for k, v in res["per_ping"].items()}
+    arrays.update({f"tr_{k}": np.asarray(v, float) for k, v in (res.get("tracking") or {}).items()})
+    arrays.update(noise_histogram=np.atleast_2d(np.asarray(res["noise_histogram"])),
                   seconds=np.asarray(res["seconds"]),
                   stage_seconds=np.asarray(json.dumps(res["stage_seconds"])),
                   notes=np.asarray(json.dumps(res["notes"])),
@@ -73,8 +78,12 @@ def load_part(path: Path, *, experiment: str | None = None) -> dict:
     if experiment is not None and str(arrays.get("experiment", "")) != experiment:
         raise PartError(f"{path.name}: written by another experiment", "foreign")
     try:
-        return {"per_ping": {k[3:]: arrays[k] for k in arrays if k.startswith("pp_")},
-                "noise_histogram": arrays["noise_histogram"], "seconds": float(arrays["seconds"]),
+        # per setting and ping (n_settings, n_pings); a part of one ping before runs were
+        # tracked held (n_settings,)
+        return {"per_ping": {k[3:]: arrays[k].reshape(arrays[k].shape[0], -1) for k in arrays
+                             if k.startswith("pp_")},
+                "tracking": {k[3:]: arrays[k] for k in arrays if k.startswith("tr_")} or None,
+                "noise_histogram": np.atleast_2d(arrays["noise_histogram"]), "seconds": float(arrays["seconds"]),
                 "stage_seconds": json.loads(str(arrays["stage_seconds"])),
                 "notes": json.loads(str(arrays["notes"])), "figure": arrays["figure"].tobytes()}
     except (KeyError, ValueError) as exc:
@@ -103,7 +112,7 @@ def assemble_results(*, labels, values, pings, tasks, parts: Path, attrs: dict,
     values : sequence of float, length n_settings
         Sweep value of each setting (NaN for the scene as written).
     pings : sequence of int, length n_pings
-    tasks : sequence of (task id, point index, ping, setting indices)
+    tasks : sequence of (task id, point index, pings, setting indices)
     parts : Path
         Folder of the parts.
     attrs : dict
@@ -115,6 +124,10 @@ def assemble_results(*, labels, values, pings, tasks, parts: Path, attrs: dict,
         Per-ping numbers (setting, ping), the noise histogram (ping, noise_bin), task times,
         and per-setting means, standard deviations, the nMAE of the per-ping counts before and
         after interferometry (``count_nmae_before``, ``count_nmae_after``) and the TS estimate.
+        Tracked runs (parts with tracking scores) add per (setting, run) every key of
+        :data:`TRACK_KEYS` along ``run`` (its first ping in ``run_first_ping``), and per
+        setting ``track_count_nmae`` (Σ|counted − true| / Σ true over the runs) and the mean
+        of each score over the runs.
     """
     n_set, n_p = len(labels), len(pings)
     col = {p: i for i, p in enumerate(pings)}
@@ -123,13 +136,22 @@ def assemble_results(*, labels, values, pings, tasks, parts: Path, attrs: dict,
     seconds = np.zeros(n_p)
     stages: dict = {}
     notes: dict = {}
-    for tid, j, p, idx in tasks:
+    runs = [ps[0] for _, j, ps, _ in tasks if j == 0]
+    run_of = {first: i for i, first in enumerate(runs)}
+    tracked = {k: np.full((n_set, len(runs)), np.nan) for k in TRACK_KEYS}
+    any_tracked = False
+    for tid, j, ps, idx in tasks:
         part = load_part(Path(parts) / f"{tid}.npz", experiment=experiment)
+        cols = [col[p] for p in ps]
         for k in PER_PING_KEYS:
-            data[k][idx, col[p]] = part["per_ping"][k]
+            data[k][np.ix_(idx, cols)] = part["per_ping"][k]
         if j == 0:
-            hist[col[p]] = part["noise_histogram"]
-        seconds[col[p]] += part["seconds"]
+            hist[cols] = part["noise_histogram"]
+        seconds[cols] += part["seconds"] / len(cols)     # a run's time shared by its pings
+        if part["tracking"]:
+            any_tracked = True
+            for k in TRACK_KEYS:
+                tracked[k][idx, run_of[ps[0]]] = part["tracking"][k]
         for s, t in part["stage_seconds"].items():
             stages[s] = stages.get(s, 0.0) + t
         for n in part["notes"]:
@@ -172,6 +194,8 @@ def assemble_results(*, labels, values, pings, tasks, parts: Path, attrs: dict,
             "long_name": f"nMAE of the per-ping counts {when} interferometry: "
                          "sum |count - true| / sum true over the pings", "units": "1",
                          "nan_means": "no truth, or no fish in the volume in any ping"})
+    if any_tracked:
+        _add_tracking(ds, tracked, runs)
     with np.errstate(divide="ignore", invalid="ignore"):
         sv, dens = ds["s_v_per_m"].sum("ping", skipna=True), ds["density_per_m3"].sum("ping")
         ds["ts_estimate_db"] = 10 * np.log10(xr.where(dens > 0, sv / dens, np.nan).where(sv > 0))
@@ -187,3 +211,32 @@ def assemble_results(*, labels, values, pings, tasks, parts: Path, attrs: dict,
                      "notes": "; ".join(f"{n} ({c} task{'s' if c > 1 else ''})"
                                         for n, c in sorted(notes.items()))})
     return ds
+
+
+def _add_tracking(ds: xr.Dataset, tracked: dict, runs: list) -> None:
+    """The tracked runs' scores along ``run``, and per setting their nMAE and means."""
+    from processing.tracking.hota import nmae
+    ds.coords["run_first_ping"] = ("run", np.asarray(runs, np.int64))
+    long = {"counted_passages": "passages through the counting volume counted as tracks",
+            "true_passages": "fish that passed through the counting volume",
+            "hota": "HOTA (Luiten et al. 2021)", "deta": "HOTA's detection accuracy",
+            "assa": "HOTA's association accuracy", "loca": "HOTA's localisation accuracy",
+            "idf1": "IDF1", "mota": "MOTA", "motp": "MOTP: mean distance of matched track points"}
+    for k, v in tracked.items():
+        ds[f"run_{k}"] = xr.DataArray(v, dims=("setting", "run"), attrs={
+            "long_name": long[k], "units": "m" if k == "motp" else "1",
+            "nan_means": "no truth, no passage, or no 3-D positions in this run"})
+    vals = []
+    for i in range(v.shape[0]):
+        c, t = tracked["counted_passages"][i], tracked["true_passages"][i]
+        ok = np.isfinite(c) & np.isfinite(t)
+        vals.append(nmae(c[ok], t[ok]) if ok.any() else np.nan)
+    ds["track_count_nmae"] = xr.DataArray(np.array(vals, float), dims="setting", attrs={
+        "long_name": "nMAE of the track counts over the runs: sum |counted - true| / sum true "
+                     "(Kay et al. 2022); over- and under-counts of runs do not cancel",
+        "units": "1", "nan_means": "no truth, or no passage in any run"})
+    for k in ("hota", "deta", "assa", "loca", "idf1", "mota", "motp"):
+        m = np.array([row[np.isfinite(row)].mean() if np.isfinite(row).any() else np.nan
+                      for row in tracked[k]], float)
+        ds[f"{k}_mean"] = xr.DataArray(m, dims="setting", attrs={
+            "long_name": f"mean over the runs of {long[k]}", "units": "m" if k == "motp" else "1"})

@@ -241,7 +241,9 @@ class _RunFigures:
     def counts(self, tree):
         """counts/: detections of the first three pings, and counts per ping."""
         from abacus.figures.plots import count_figure_data, draw_counts_figure, draw_detection_figures
-        n = tree["Processing/Counts"].sizes["ping_time"]
+        from processing.base.contract import COUNTS_GROUP
+        from processing.base.dataset import group_of
+        n = group_of(tree, COUNTS_GROUP).sizes["ping_time"]
         data = count_figure_data(tree, pings=range(min(n, 3)))
         # the pings drawn by one job share one figure (made once, its data changed per ping)
         self._submit("counts", draw_detection_figures, data["detections"])

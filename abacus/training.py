@@ -113,7 +113,9 @@ def write_sample(tree, path: Path) -> None:
     import processing
     out = processing.image(tree, labels=True)
     im = processing.images_of(out)
-    lab = out["Processing/Labels"].ds
+    from processing.base.contract import LABELS_GROUP
+    from processing.base.dataset import group_of
+    lab = group_of(out, LABELS_GROUP)
     mag = np.abs(im.image[:, 0])
     with np.errstate(divide="ignore"):
         image_db = 20 * np.log10(np.maximum(mag, 1e-12)).astype(np.float32)

@@ -11,7 +11,13 @@ Writes docs/single_targets.md (the tables between its ``<!-- bench:... -->`` mar
   m, physical levels and the sea's thermal noise, Rayleigh detection; isolated fish 1.2 m apart
   in range, or each with a partner closer than one echo length in range in the same beam
   (azimuth within ±0.5 of the azimuth resolution, elevation independent): the share found as
-  single targets, their TS error, and the share of pairs rejected, by rule.
+  single targets, their TS error, and the share of pairs rejected, by rule, with the default
+  criteria (the phase limits widened by the noise, the range phase rule) and the reference
+  (the convention's fixed limits alone); each scene its own noise (scene seed), the fish drawn
+  from ``--seed`` (1, held out: the settings were chosen on development seed 101);
+* ``indistinguishable``: each pair scene again without noise: a pair whose noise-free echo
+  differs from one echo, in every measure the criteria use, by less than noise alone moves a
+  single echo at the pair's SNR cannot be told from one fish at that SNR.
 
     python benchmarks/single_targets.py [--quick] [--out docs/single_targets.md]
 """
@@ -41,8 +47,8 @@ LFM_B, CW_B = 20_000.0, 0.0
 
 
 def _scene(points, *, bandwidth_hz, image_range, noise=False, source_level_db=None, pings=1,
-           mode="interferometric", detect=None, single_target=None):
-    upd = {"targets.points": points, "signal.bandwidth_hz": bandwidth_hz, "pings": {"count": pings},
+           mode="interferometric", detect=None, single_target=None, seed=None):
+    upd = {**({"seed": int(seed)} if seed is not None else {}), "targets.points": points, "signal.bandwidth_hz": bandwidth_hz, "pings": {"count": pings},
            "sonar.mode": mode,
            "processing": {"image": {"range_m": list(image_range)},
                           "detect": detect or {"method": "fraction_of_peak", "fraction": 0.05},
@@ -131,15 +137,34 @@ def _fish(rng, *, pairs, nominal_m, az_res_deg):
     return pts, truth
 
 
-def detection_rates(*, pairs, scenes, source_level_db, pings=2, seed=1, settings=None):
-    """Rates of one experiment: found share and TS errors (isolated) or rejected share (pairs)."""
+#: the criteria of the rows: the defaults, and the reference (the convention's fixed limits alone)
+REFERENCE = {"phase_deviation_sigmas": 0.0, "maximum_range_phase_deviation_deg": None}
+#: noise alone moved a single echo's phase measures by at most this many σ_noise (development
+#: seed 101, 359 isolated fish at SNR 20-60 dB: 1.4); the echo length's spread is
+#: σ_len ≈ σ/A of the nominal length (a Gaussian main lobe's slope at its −6 dB points)
+NOISE_EXCURSION, LENGTH_EXCURSION = 1.5, 2.5
+DR_BINS = ((0.0, 0.1), (0.1, 0.25), (0.25, 0.5), (0.5, 0.75), (0.75, 1.0))
+
+
+def _near(t, f, p, nominal, az_res_deg):
+    lo, hi = min(f["range_m"]) - 0.5 * nominal, max(f["range_m"]) + 0.5 * nominal
+    return ((t["ping"] == p) & (t["range_m"] >= lo) & (t["range_m"] <= hi)
+            & np.any([np.abs(np.degrees(t["azimuth_rad"]) - a) <= az_res_deg for a in f["azimuth_deg"]], axis=0))
+
+
+def detection_rates(*, pairs, scenes, source_level_db, pings=2, seed=1, settings=None, noise_free=False):
+    """Rates of one experiment: found share and TS errors (isolated) or rejected share (pairs);
+    with ``noise_free`` (pairs), each scene again without noise for the pairs that no measure
+    could tell from one echo at their SNR."""
     rng = np.random.default_rng(seed + (1000 if pairs else 0))
     detect = {"method": "rayleigh", "pfa_image": 1e-6}
     nominal, az_res_deg = 0.096, 1.55          # refined from the first scene's chain
     found, errors, rejected, dr_of, spurious, rules, n_accepted = [], [], [], [], 0, {}, 0
+    snr_all, limits, clean_rows, single_dev = [], [], [], []
     for s in range(scenes):
         pts, truth = _fish(rng, pairs=pairs, nominal_m=nominal, az_res_deg=az_res_deg)
-        sc = _scene(pts, bandwidth_hz=LFM_B, image_range=(13.0, 26.0), noise=True,
+        scene_seed = 1_000_000 * seed + 1000 * s + (500 if pairs else 0)
+        sc = _scene(pts, bandwidth_hz=LFM_B, image_range=(13.0, 26.0), noise=True, seed=scene_seed,
                     source_level_db=source_level_db, pings=pings, detect=detect, single_target=settings)
         chain = RecordChain(acoustics.simulate(sc))
         detected = chain.detect()
@@ -149,18 +174,31 @@ def detection_rates(*, pairs, scenes, source_level_db, pings=2, seed=1, settings
         t = detected.table
         acc = res["single_target"]
         n_accepted += int(acc.sum())
+        cand_all = res["rejected_by"] != "sidelobe"
+        limits.append(np.stack([res[k][cand_all] for k in ("phase_deviation_limit_deg",
+                                                            "azimuth_phase_deviation_limit_deg",
+                                                            "range_phase_deviation_limit_deg")]))
         used = np.zeros(acc.size, bool)
+        if pairs and noise_free:
+            # the noise's share of each measure per unit σ/A (σ the noise's Rayleigh scale, A the
+            # echo's peak), as the chain computes it for this run's candidates
+            rel = 10 ** (-t["snr_db"] / 20)
+            per_unit = [float(np.nanmedian(res[k][cand_all] / rel[cand_all])) for k in
+                        ("phase_deviation_noise_deg", "azimuth_phase_deviation_noise_deg",
+                         "range_phase_deviation_noise_deg")]
+            clean = _noise_free_measures(pts, truth, scene_seed, source_level_db, pings, settings, t, nominal,
+                                         az_res_deg, per_unit)
         for p in range(pings):
-            for f in truth:
-                lo, hi = min(f["range_m"]) - 0.5 * nominal, max(f["range_m"]) + 0.5 * nominal
-                near = ((t["ping"] == p) & (t["range_m"] >= lo) & (t["range_m"] <= hi)
-                        & np.any([np.abs(np.degrees(t["azimuth_rad"]) - a) <= az_res_deg for a in f["azimuth_deg"]], axis=0))
+            for fi, f in enumerate(truth):
+                near = _near(t, f, p, nominal, az_res_deg)
                 hit = near & acc
                 used |= hit
                 if pairs:
                     rejected.append(not hit.any())
                     dr_of.append(f["dr"])
-                    cand = near & (res["rejected_by"] != "sidelobe")
+                    if noise_free:
+                        clean_rows.append(clean[p][fi])
+                    cand = near & cand_all
                     if not hit.any() and cand.any():
                         k = np.flatnonzero(cand)[np.argmax(t["amplitude"][cand])]
                         rules[res["rejected_by"][k]] = rules.get(res["rejected_by"][k], 0) + 1
@@ -169,44 +207,104 @@ def detection_rates(*, pairs, scenes, source_level_db, pings=2, seed=1, settings
                     if hit.any():
                         k = np.flatnonzero(hit)[np.argmax(t["amplitude"][hit])]
                         errors.append(float(res["ts_comp_db"][k] - f["ts_db"][0]))
+                        single_dev.append(_measures(res, k))
                     else:
-                        cand = near & (res["rejected_by"] != "sidelobe")
+                        cand = near & cand_all
                         if cand.any():
                             k = np.flatnonzero(cand)[np.argmax(t["amplitude"][cand])]
                             rules[res["rejected_by"][k]] = rules.get(res["rejected_by"][k], 0) + 1
                         else:
                             rules["not detected"] = rules.get("not detected", 0) + 1
         spurious += int((acc & ~used).sum())
-        snr = t["snr_db"][acc]
+        snr_all.append(t["snr_db"][acc])
+    snr = np.concatenate(snr_all)
+    lim = np.concatenate(limits, axis=1)
     out = {"source_level_db": source_level_db, "settings": settings or {}, "accepted": n_accepted, "spurious": spurious, "rules": rules,
-           "snr_db": (float(np.median(snr)) if snr.size else float("nan"))}
+           "snr_db": (float(np.median(snr)) if snr.size else float("nan")),
+           "limits": [float(np.nanmedian(x)) if np.isfinite(x).any() else float("nan") for x in lim]}
     if pairs:
         rej = np.array(rejected)
         dr = np.array(dr_of)
-        out.update(n=int(rej.size), rejected=float(rej.mean()),
+        out.update(n=int(rej.size), rejected=float(rej.mean()), dr_of=dr_of, rejected_of=rejected,
                    by_dr=[(lo, hi, float(rej[(dr >= lo) & (dr < hi)].mean()), int(((dr >= lo) & (dr < hi)).sum()))
-                          for lo, hi in ((0.0, 0.25), (0.25, 0.5), (0.5, 0.75), (0.75, 1.0))])
+                          for lo, hi in DR_BINS])
+        if noise_free:
+            out["clean"] = clean_rows
     else:
         e = np.array(errors)
+        out["single_dev"] = np.array(single_dev).reshape(-1, 4)
         out.update(n=len(found), found=float(np.mean(found)), mean_abs_error=float(np.mean(np.abs(e))),
                    mean_error=float(np.mean(e)), sd_error=float(np.std(e)))
     return out
 
 
+def _measures(res, k):
+    """The candidate's deviations from one echo: ψ_AB, split and range phase deviations (deg),
+    |echo length − 1|."""
+    return np.nan_to_num(np.array([res["phase_deviation_deg"][k], res["azimuth_phase_deviation_deg"][k],
+                                   res["range_phase_deviation_deg"][k], abs(res["echo_length"][k] - 1.0)], float))
+
+
+def _noise_free_measures(pts, truth, scene_seed, source_level_db, pings, settings, noisy, nominal, az_res_deg,
+                         per_unit):
+    """For each ping and pair: the deviations of the pair's strongest echo simulated without
+    noise (same fish, phases and levels; :func:`_measures`), the spread noise alone gives one
+    echo of its amplitude at the noisy run's noise level in each (σ/A times each measure's
+    noise share per unit σ/A, ``per_unit``; the echo length's σ/A) and whether it passes the
+    fixed limits, or None where no echo was detected."""
+    sc = _scene(pts, bandwidth_hz=LFM_B, image_range=(13.0, 26.0), noise=False, seed=scene_seed,
+                source_level_db=source_level_db, pings=pings,
+                detect={"method": "fraction_of_peak", "fraction": 0.003}, single_target=settings)
+    chain = RecordChain(acoustics.simulate(sc))
+    detected = chain.detect()
+    res = chain.target_detection(detected)
+    t = detected.table
+    sigma = float(np.nanmedian(noisy["amplitude"] * 10 ** (-noisy["snr_db"] / 20)))
+    st = chain.settings.single_target
+    out = []
+    for p in range(pings):
+        row = []
+        for f in truth:
+            cand = _near(t, f, p, nominal, az_res_deg) & (res["rejected_by"] != "sidelobe")
+            if not cand.any():
+                row.append(None)
+                continue
+            k = np.flatnonzero(cand)[np.argmax(t["amplitude"][cand])]
+            rel = sigma / float(t["amplitude"][k])                  # σ/A at the pair's SNR
+            dev = _measures(res, k)
+            noise = np.array([*(u * rel for u in per_unit), rel])
+            within_limits = bool(st.minimum_echo_duration <= res["echo_length"][k] <= st.maximum_echo_duration
+                                 and max(dev[0], dev[1]) <= st.maximum_phase_deviation
+                                 and (st.maximum_range_phase_deviation is None
+                                      or dev[2] <= st.maximum_range_phase_deviation))
+            row.append((dev, noise, within_limits))
+        out.append(row)
+    return out
+
+
+def _criteria(settings):
+    if not settings:
+        return "default"
+    if settings == REFERENCE:
+        return "reference: fixed limits"
+    return ", ".join(f"{k} {v}" for k, v in settings.items())
+
+
 def rates_table(results):
-    out = ["| scene | source level (dB re 1 µPa at 1 m) | criteria | median SNR of single targets (dB) | fish or pairs | found as single targets | rejected | mean TS_comp error (dB) | mean abs TS error (dB) | sd (dB) | spurious single targets | why the others were not single targets |",
-           "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    out = ["| scene | source level (dB re 1 µPa at 1 m) | criteria | median SNR of single targets (dB) | fish or pairs | found as single targets | rejected | mean TS_comp error (dB) | mean abs TS error (dB) | sd (dB) | spurious single targets | phase limits held to, median: ψ_AB / split / range (deg) | why the others were not single targets |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for kind, r in results:
-        crit = ", ".join(f"{k} {v:g}" for k, v in r["settings"].items()) or "default"
+        crit = _criteria(r["settings"])
         why = ", ".join(f"{k} {v}" for k, v in sorted(r["rules"].items(), key=lambda kv: -kv[1])) or "–"
+        lim = " / ".join("–" if not np.isfinite(x) else f"{x:.1f}" for x in r["limits"])
         if kind == "isolated":
             out.append(f"| isolated fish | {r['source_level_db']:g} | {crit} | {r['snr_db']:.0f} | {r['n']} | {100 * r['found']:.1f} % | "
                        f"{100 * (1 - r['found']):.1f} % | {r['mean_error']:+.3f} | {r['mean_abs_error']:.3f} | "
-                       f"{r['sd_error']:.3f} | {r['spurious']} | {why} |")
+                       f"{r['sd_error']:.3f} | {r['spurious']} | {lim} | {why} |")
         else:
             out.append(f"| pairs closer than one echo length | {r['source_level_db']:g} | {crit} | {r['snr_db']:.0f} | {r['n']} | "
                        f"{100 * (1 - r['rejected']):.1f} % | {100 * r['rejected']:.1f} % | – | – | – | "
-                       f"{r['spurious']} | {why} |")
+                       f"{r['spurious']} | {lim} | {why} |")
     return "\n".join(out)
 
 
@@ -215,9 +313,37 @@ def pairs_by_separation_table(results):
     for kind, r in results:
         if kind != "pairs":
             continue
-        crit = ", ".join(f"{k} {v:g}" for k, v in r["settings"].items()) or "default"
         for lo, hi, rej, n in r["by_dr"]:
-            out.append(f"| {r['source_level_db']:g} | {crit} | {lo:.2f}–{hi:.2f} | {n} | {100 * rej:.1f} % |")
+            out.append(f"| {r['source_level_db']:g} | {_criteria(r['settings'])} | {lo:.2f}–{hi:.2f} | {n} | {100 * rej:.1f} % |")
+    return "\n".join(out)
+
+
+def indistinguishable_table(results):
+    """Pairs within noise of one echo: every deviation of the pair's noise-free echo no larger
+    than what one echo shows — NOISE_EXCURSION σ_noise in each phase measure, LENGTH_EXCURSION
+    σ_len in echo length, or, where larger, the most an isolated fish's echo showed at the
+    highest level (its own deviations from the point response, noise ≤ 0.01°)."""
+    own = np.max(next(r for kind, r in results if kind == "isolated")["single_dev"], axis=0)
+    out = ["| source level (dB) | separation (echo lengths) | pairs | within noise of one echo (no measure can tell) | a single target to the fixed limits without noise | rejected by the default criteria, of those not within noise |",
+           "|---|---|---|---|---|---|"]
+    for kind, r in results:
+        if kind != "pairs" or "clean" not in r:
+            continue
+        rows = r["clean"]
+        dr = np.array(r["dr_of"])
+        rej = np.array(r["rejected_of"])
+        seen = np.array([c is not None for c in rows])
+        wn = np.array([c is not None and bool(np.all(c[0] <= np.maximum(
+            np.array([NOISE_EXCURSION] * 3 + [LENGTH_EXCURSION]) * c[1], own))) for c in rows])
+        wl = np.array([c is not None and c[2] for c in rows])
+        for lo, hi in ((0.0, 0.1), (0.1, 0.25), (0.25, 1.0)):
+            m = (dr >= lo) & (dr < hi) & seen
+            rj = (f"{100 * rej[m & ~wn].mean():.1f} %" if (m & ~wn).any() else "–")
+            out.append(f"| {r['source_level_db']:g} | {lo:.2f}–{hi:.2f} | {int(m.sum())} | {100 * wn[m].mean():.1f} % | "
+                       f"{100 * wl[m].mean():.1f} % | {rj} |")
+    out.append("")
+    out.append(f"One echo's own deviations (isolated fish, source level {next(r for k, r in results if k == 'isolated')['source_level_db']:g} dB, "
+               f"the largest): ψ_AB {own[0]:.3f}°, split {own[1]:.3f}°, range {own[2]:.3f}°, echo length {own[3]:.3f}.")
     return "\n".join(out)
 
 
@@ -233,6 +359,8 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="fewer scenes (development)")
     ap.add_argument("--out", default=str(ROOT / "docs" / "single_targets.md"))
     ap.add_argument("--only", choices=("ts_bias", "rates"))
+    ap.add_argument("--seed", type=int, default=1,
+                    help="draws the fish and the scenes' noise (1: held out from the settings' choice)")
     a = ap.parse_args(argv)
     warnings.simplefilter("ignore")
     t0 = time.time()
@@ -243,19 +371,23 @@ def main(argv=None):
     if a.only in (None, "rates"):
         n = 3 if a.quick else 12
         results = []
-        for level, st in ((210.0, None), (180.0, None), (165.0, None),
-                          (165.0, {"maximum_phase_deviation_deg": 5.0})):
-            results.append(("isolated", detection_rates(pairs=False, scenes=n, source_level_db=level, settings=st)))
-            results.append(("pairs", detection_rates(pairs=True, scenes=n, source_level_db=level, settings=st)))
+        for level in (210.0, 180.0, 165.0):
+            for st in (None, REFERENCE):
+                results.append(("isolated", detection_rates(pairs=False, scenes=n, source_level_db=level,
+                                                            settings=st, seed=a.seed)))
+                results.append(("pairs", detection_rates(pairs=True, scenes=n, source_level_db=level, settings=st,
+                                                         seed=a.seed, noise_free=st is None)))
         tables["rates"] = rates_table(results)
         tables["pairs"] = pairs_by_separation_table(results)
-        print(tables["rates"])
-        print(tables["pairs"])
+        tables["indistinguishable"] = indistinguishable_table(results)
+        for k in ("rates", "pairs", "indistinguishable"):
+            print(tables[k])
     load = os.getloadavg()[0]
     text = Path(a.out).read_text()          # read at the end: the page may be edited meanwhile
     for key, body in tables.items():
         text = _replace(text, key, body)
-    flags = (" --quick" if a.quick else "") + (f" --only {a.only}" if a.only else "")
+    flags = ((" --quick" if a.quick else "") + (f" --only {a.only}" if a.only else "")
+             + (f" --seed {a.seed}" if a.seed != 1 else ""))
     text = _replace(text, "run", f"`python benchmarks/single_targets.py{flags}`: "
                     f"{time.time() - t0:.0f} s, load average {load:.1f} (a shared 2-core machine).")
     Path(a.out).write_text(text)

@@ -115,8 +115,8 @@ def simulate_ping():
         t0 = time.perf_counter()
         tree = simulate(scene, pings=range(10))
         best = min(best, time.perf_counter() - t0)
-    prov = tree["Provenance"].ds
-    rows = [[str(s), f"{t:.3f}"] for s, t in zip(prov["stage"].values, prov["stage_seconds"].values)]
+    from processing.base.dataset import stage_seconds
+    rows = [[str(s), f"{t:.3f}"] for s, t in stage_seconds(tree).items()]
     return ("## Simulating the default scene\n\n"
             f"`scenes/default.yaml` (100 targets, noise on), 10 pings: {best:.2f} s in all, "
             f"{best / 10 * 1e3:.0f} ms per ping. Stages of the last run:\n\n"
@@ -741,6 +741,7 @@ def motion():
     from pathlib import Path
 
     from acoustics.simulation.run import simulate
+    from processing.base.dataset import stage_seconds
     variants = [
         ("school of 250 fish, holding still", dict()),
         ("… swimming (turning together, 10 sub-steps)", dict(swim=True)),
@@ -763,9 +764,7 @@ def motion():
             dt = time.perf_counter() - t0
             if dt < best[i]:
                 best[i] = dt
-                prov = tree["Provenance"].ds
-                stages[i] = dict(zip((str(s) for s in prov["stage"].values),
-                                     (float(v) for v in prov["stage_seconds"].values)))
+                stages[i] = stage_seconds(tree)
     names = ["targets", "swimbladder_ts", "doppler", "platform_in_flight", "occlusion", "reverberation", "echoes"]
     rows = []
     for (label, _), b, st, ref in zip(variants, best, stages, [None, 0, 1, 1, None, 4, 5, 6]):
@@ -817,6 +816,7 @@ import json, resource, sys, time, warnings
 warnings.simplefilter("ignore")
 from acoustics import load_scene
 from acoustics.simulation.run import simulate
+from processing.base.dataset import stage_seconds
 scene = load_scene(sys.argv[1])
 pings, rounds = int(sys.argv[2]), int(sys.argv[3])
 simulate(scene, pings=range(2))                    # warm: kernels loaded, caches filled
@@ -826,9 +826,7 @@ for _ in range(rounds):
     tree = simulate(scene, pings=range(2, 2 + pings))
     wall = time.perf_counter() - t0
     if best is None or wall < best[0]:
-        prov = tree["Provenance"].ds
-        best = (wall, dict(zip((str(s) for s in prov["stage"].values),
-                               (float(v) for v in prov["stage_seconds"].values))))
+        best = (wall, stage_seconds(tree))
 print(json.dumps({"wall_s": best[0], "pings": pings, "stages_s": best[1],
                   "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """

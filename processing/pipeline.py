@@ -33,7 +33,7 @@ FLAG_COLUMNS = ("in_span", "in_volume", "elevation_clipped")
 
 
 #: what only interferometry (the elevation) gives: NaN in normal and combined mode
-AFTER_KEYS = ("count_after", "density_per_m3", "occupied_density_per_m3", "error_after",
+AFTER_KEYS = ("count_after", "count_expected", "density_per_m3", "occupied_density_per_m3", "error_after",
               "hits_after", "misses_after", "false_alarms_after", "shared_cell_misses")
 
 
@@ -340,7 +340,12 @@ class RecordChain:
         Returns
         -------
         columns : dict of ndarray, each shape (n_pings,)
-            count_before, count_after, density_per_m3, occupied_density_per_m3 and, with
+            count_before, count_after, density_per_m3, occupied_density_per_m3, with
+            ``count.volume_edge`` "soft" count_expected (float: the expected number of fish
+            inside given the located elevations and their σ), with
+            ``count.coincidence_correction`` "poisson" count_corrected (float: the expected
+            number of fish behind count_after, or behind count_expected with the soft edge),
+            which the densities then use, and, with
             ground truth, true_in_volume, errors, hits/misses/false alarms
             (:func:`processing.detection.detect.score_all`); the values only interferometry
             gives are NaN without it.
@@ -352,13 +357,27 @@ class RecordChain:
         st = self.settings
         table, volume = detected.table, detected.volume
         n = len(self.ping_index)
+        sidelobe = self.sidelobes(detected)
         res = score_all(table, self.truth, volume, n, dr=detected.range_resolution_m,
                         dtheta=detected.azimuth_resolution_rad, gate=st.count.gate_cells,
-                        unresolved=st.count.unresolved_cells, sidelobe=self.sidelobes(detected))
+                        unresolved=st.count.unresolved_cells, sidelobe=sidelobe)
+        if st.count.volume_edge == "soft" and detected.interferometric:
+            # each detection counts with the probability that its fish lies inside
+            res["count_expected"] = self._expected_count(detected, ~sidelobe)
+            res["density_per_m3"] = res["count_expected"] / volume.volume_m3
+        if st.count.coincidence_correction == "poisson" and detected.interferometric:
+            # fish sharing a resolution cell give one echo: the expected number behind the count
+            from processing.detection.coincidence import coincidence_coefficient, corrected_count
+            a = coincidence_coefficient(volume, range_resolution_m=detected.range_resolution_m,
+                                        azimuth_resolution_rad=detected.azimuth_resolution_rad,
+                                        unresolved_cells=st.count.unresolved_cells)
+            res["count_corrected"] = corrected_count(res.get("count_expected", res["count_after"]), a)
+            res["density_per_m3"] = res["count_corrected"] / volume.volume_m3
+        after = res.get("count_corrected", res.get("count_expected", res["count_after"]))
         # the density where the targets are: the range layer the run's located targets occupy
         layer = occupied_range(table["range_m"][table["in_volume"]], volume)
         occupied_m3 = volume.sector_volume_m3(layer) if layer is not None else 0.0
-        res["occupied_density_per_m3"] = (res["count_after"] / occupied_m3 if occupied_m3 > 0
+        res["occupied_density_per_m3"] = (after / occupied_m3 if occupied_m3 > 0
                                           else np.full(n, np.nan))
         if not detected.interferometric:
             # no elevation, so nothing is located in 3-D: "after interferometry" does not exist
@@ -368,6 +387,23 @@ class RecordChain:
                     res[k] = np.full(n, np.nan)
         return res, {"occupied_range_m": list(layer) if layer is not None else [],
                      "occupied_volume_m3": occupied_m3}
+
+    def _expected_count(self, detected: Detected, counted) -> np.ndarray:
+        """Per ping, the expected number of fish inside the counting volume given the counted
+        detections' located elevations and their σ (``count.volume_edge: soft``,
+        :mod:`processing.detection.volume_edge`), shape (n_pings,) float."""
+        from processing.detection.volume_edge import baseline_of, elevation_sd_rad, soft_weights
+        table, n = detected.table, len(self.ping_index)
+        baseline = baseline_of(self.record)
+        if baseline is None or not detected.n:
+            return np.bincount(table["ping"][table["in_volume"] & counted], minlength=n).astype(float)
+        pos = np.stack([table[f"{a}_m"] for a in "xyz"], -1)
+        sd = elevation_sd_rad(table["snr_db"], table["azimuth_rad"], table["elevation_rad"],
+                              baseline_m=baseline, wavelength_m=self.record.wavelength_m,
+                              interference_db=self.settings.count.edge_interference_db)
+        w = soft_weights(detected.volume, pos, sd)
+        w = np.where(counted, w, 0.0)
+        return np.bincount(table["ping"], weights=w, minlength=n)
 
     def sidelobes(self, detected: Detected) -> np.ndarray:
         """Which detections the count takes for a stronger one's sidelobe or ghost
@@ -449,11 +485,18 @@ class RecordChain:
             ``beam_compensation_db`` (one-way, dB), ``echo_length_m``, ``echo_length``
             (normalised), ``phase_deviation_deg`` (ψ_AB, electrical), ``angle_deviation_deg``
             (elevation, mechanical), ``azimuth_phase_deviation_deg`` (split-aperture phase,
-            electrical), ``azimuth_deviation_deg`` (mechanical), ``echo_spacing`` (nominal pulse lengths, inf alone),
+            electrical), ``azimuth_deviation_deg`` (mechanical), ``range_phase_deviation_deg``
+            (the echo's phase along range), the limits each was held to
+            (``phase_deviation_limit_deg``, ``azimuth_phase_deviation_limit_deg``,
+            ``range_phase_deviation_limit_deg``: the fixed limit widened by the noise's share,
+            ``single_target.phase_deviation_sigmas``), the noise's share of each
+            (``phase_deviation_noise_deg``, ``azimuth_phase_deviation_noise_deg``,
+            ``range_phase_deviation_noise_deg``: the spread noise alone gives one echo there, NaN
+            without a noise level), ``echo_spacing`` (nominal pulse lengths, inf alone),
             ``rejected_by`` (str: the first rule failed, "" for a single target) and
             ``single_target`` (bool).
         """
-        from processing.backscatter.echo_criteria import echo_spacing, verdicts
+        from processing.backscatter.echo_criteria import echo_spacing, phase_limit_deg, verdicts
         from processing.backscatter.single_targets import single_targets
         st = self.settings
         sts = st.single_target
@@ -469,36 +512,52 @@ class RecordChain:
         angle_dev = np.full(n, np.nan)
         az_phase_dev = np.full(n, np.nan)
         az_dev = np.full(n, np.nan)
+        range_dev = np.full(n, np.nan)
+        # the noise's share of each phase measure (ψ_AB, split phase, range phase), deg
+        noise = np.full((3, n), np.nan)
         ping = np.asarray(det["ping"], int)
         pings = np.unique(ping)
         for s in range(0, pings.size, chunk):
             part = pings[s:s + chunk]
             im = (detected.images.pings(part) if detected.images is not None
                   else self.images(pings=part))
-            self._measure_echoes(im, part, ping, det, length_m, phase_dev, angle_dev, az_phase_dev, az_dev)
+            self._measure_echoes(im, part, ping, det, length_m, phase_dev, angle_dev, az_phase_dev, az_dev,
+                                 range_dev, noise)
         nominal = self.nominal_echo_length_m
         comp = np.where(np.isfinite(pat), -0.5 * pat, np.nan)
         spacing = echo_spacing(ping, det["range_m"], det["azimuth_rad"], ~sidelobe,
                                azimuth_resolution_rad=detected.azimuth_resolution_rad) / nominal
         echo_length = length_m / nominal
-        # the larger of the two planes' phase deviations, as a split-beam echosounder applies
-        # its one limit to both (NaN, the rule skipped, where neither plane has a phase)
+        # both planes' phase deviations against the one limit, as a split-beam echosounder
+        # applies it to both, each widened by its own noise (a plane without a phase, NaN, is
+        # not tested)
         both = np.stack([phase_dev, az_phase_dev])
-        worst = np.where(np.all(np.isnan(both), axis=0), np.nan,
-                         np.nanmax(np.where(np.isnan(both), -np.inf, both), axis=0))
         rule = verdicts(sidelobe=sidelobe, ts_comp_db=ts_c, echo_length=echo_length,
-                        phase_deviation_deg=worst, compensation_db=comp, spacing=spacing,
-                        settings=sts)
+                        phase_deviation_deg=both, phase_noise_deg=noise[:2], compensation_db=comp,
+                        spacing=spacing, range_phase_deviation_deg=range_dev,
+                        range_phase_noise_deg=noise[2], settings=sts)
+        limits = [phase_limit_deg(lim, nz, sts.phase_deviation_sigmas) for lim, nz in
+                  ((sts.maximum_phase_deviation, noise[0]), (sts.maximum_phase_deviation, noise[1]),
+                   (sts.maximum_range_phase_deviation, noise[2]))]
         return {"ts_uncomp_db": ts_u, "ts_comp_db": ts_c, "beam_pattern_db": pat,
                 "beam_compensation_db": comp, "echo_length_m": length_m, "echo_length": echo_length,
                 "phase_deviation_deg": phase_dev, "angle_deviation_deg": angle_dev,
                 "azimuth_phase_deviation_deg": az_phase_dev, "azimuth_deviation_deg": az_dev,
+                "range_phase_deviation_deg": range_dev,
+                "phase_deviation_noise_deg": noise[0], "azimuth_phase_deviation_noise_deg": noise[1],
+                "range_phase_deviation_noise_deg": noise[2],
+                "phase_deviation_limit_deg": np.where(np.isnan(phase_dev), np.nan, limits[0]),
+                "azimuth_phase_deviation_limit_deg": np.where(np.isnan(az_phase_dev), np.nan, limits[1]),
+                "range_phase_deviation_limit_deg": np.where(np.isnan(range_dev), np.nan, limits[2]),
                 "echo_spacing": spacing, "rejected_by": rule, "single_target": rule == ""}
 
-    def _measure_echoes(self, im, part, ping, det, length_m, phase_dev, angle_dev, az_phase_dev, az_dev):
-        """Echo length and phase deviation of the detections of pings ``part`` (rows of the
-        file) from their images ``im`` (one per ping of ``part``), written in place."""
-        from processing.backscatter.echo_criteria import echo_shape
+    def _measure_echoes(self, im, part, ping, det, length_m, phase_dev, angle_dev, az_phase_dev, az_dev,
+                        range_dev, noise):
+        """Echo length, phase deviations and the noise's share of them (``noise``: ψ_AB, split
+        phase, range phase) of the detections of pings ``part`` (rows of the file) from their
+        images ``im`` (one per ping of ``part``), written in place."""
+        from processing.backscatter.echo_criteria import echo_shape, split_phase_noise_gain
+        from processing.imaging.compression import window
         sts = self.settings.single_target
         gi = im.group_index(self.settings.detect.image_group)
         inter = im.interferometric
@@ -515,6 +574,14 @@ class RecordChain:
         xs = np.sort(self.record.element_position_m[idx, 0])
         d_split = float(xs[-1] - xs[0]) * xs.size / (2.0 * max(xs.size - 1, 1))
         k = 2 * np.pi / im.wavelength_m
+        x_el = self.record.element_position_m[idx, 0]
+        g_split = (split_phase_noise_gain(x_el, window(self.settings.image.spatial_window, x_el.size),
+                                          float(np.median(np.diff(u_beam))), im.wavelength_m, d_split)
+                   if nb > 1 else np.nan)
+        # the image noise's Rayleigh scale behind each detection (NaN: no noise level)
+        sigma = (np.asarray(det["amplitude"], float) * 10.0 ** (-np.asarray(det["snr_db"], float) / 20.0)
+                 if "snr_db" in det else np.full(ping.size, np.nan))
+        groups = [gi] + ([ib if gi == ia else ia] if inter else [])
         for j, p in enumerate(part):
             for i in np.flatnonzero(ping == p):
                 row = int(np.clip(np.rint((det["range_m"][i] - r_axis[0]) / step) if step else 0,
@@ -523,9 +590,13 @@ class RecordChain:
                 env = np.abs(im.image[j, gi, :, beam])
                 cross = (im.image[j, ia, :, beam] * np.conj(im.image[j, ib, :, beam]) if inter else None)
                 sides = (np.abs(im.image[j, gi, :, [beam - 1, beam + 1]]).T if 0 < beam < nb - 1 else None)
-                length_m[i], phase_dev[i], off_sd = echo_shape(
+                shape = echo_shape(
                     env, row, range_step_m=step, level_db=sts.echo_length_level_db, cross=cross,
-                    neighbours=sides)
+                    neighbours=sides, profiles=im.image[j, groups, :, beam].T, noise_sigma=sigma[i])
+                length_m[i], phase_dev[i], off_sd = shape[:3]
+                range_dev[i] = shape.range_phase_deviation_deg
+                noise[:, i] = (shape.noise_phase_ab_deg, g_split * shape.noise_phase_deg,
+                               shape.noise_phase_deg)
                 if np.isfinite(off_sd):
                     du = 0.5 * (u_beam[beam + 1] - u_beam[beam - 1])
                     az_phase_dev[i] = np.degrees(k * d_split * du * off_sd)

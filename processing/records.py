@@ -372,6 +372,16 @@ def count(tree: xr.DataTree, settings=None, *, images: str = "none") -> xr.DataT
         units="m^-3", long_name="counted / the part of the counting volume the run's located "
         "targets occupy in range: the density where the targets are (processing/base/counting_volume.py)",
         nan_means="fewer than 2 located targets: no occupied layer")
+    if "count_expected" in ds:
+        ds["count_expected"].attrs.update(long_name="expected number of fish inside the counting volume "
+                                          "given the counted detections' located elevations and their "
+                                          "Cramér–Rao σ (processing/detection/volume_edge.py)")
+        ds.attrs["volume_edge"] = st.count.volume_edge
+    if "count_corrected" in ds:
+        ds["count_corrected"].attrs.update(long_name="expected number of fish behind count_after, fish "
+                                           "sharing a resolution cell corrected for "
+                                           "(processing/detection/coincidence.py)")
+        ds.attrs["coincidence_correction"] = st.count.coincidence_correction
     for k in AFTER_KEYS:
         if k in ds:
             ds[k].attrs["nan_means"] = "no interferometry (normal or combined mode): no elevation"
@@ -433,7 +443,7 @@ def count_summary(tree: xr.DataTree) -> dict:
             if k in ("ping_index", "volume_m3"):
                 continue
             x = float(v[i])
-            row[k] = None if not np.isfinite(x) else (x if k.endswith("per_m3") else int(x))
+            row[k] = None if not np.isfinite(x) else (x if k.endswith("per_m3") or k in ("count_corrected", "count_expected") else int(x))
         per.append(row)
 
     def stats(key):
@@ -445,7 +455,7 @@ def count_summary(tree: xr.DataTree) -> dict:
     summary = {"pings": n, "counting_volume_m3": c["volume_m3"],
                "occupied_range_m": list(ds.attrs.get("occupied_range_m", [])),
                "occupied_volume_m3": float(ds.attrs.get("occupied_volume_m3", 0.0))}
-    for key in ("count_before", "count_after", "density_per_m3", "occupied_density_per_m3", "true_in_volume",
+    for key in ("count_before", "count_after", "count_expected", "count_corrected", "density_per_m3", "occupied_density_per_m3", "true_in_volume",
                 "true_density_per_m3", "error_before", "error_after"):
         if key in c:
             summary[key] = stats(key)

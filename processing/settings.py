@@ -157,6 +157,27 @@ class CountSettings(ConfigModel):
     more than this (dB) above the ghost level its interferometric elevation predicts
     (|tan(k δ sin φ)| for a stagger ±δ), is its ghost and is not counted. 0: no ghost rule (the
     reference)."""
+    coincidence_correction: Literal["none", "poisson"] = "none"
+    """Correct the per-ping count for fish sharing a resolution cell (one echo for two;
+    processing/detection/coincidence.py): "poisson" adds ``count_corrected`` = the expected
+    number of fish behind the count, for fish spread uniformly (D = N e^(−aN), a from the
+    resolution cell of ``unresolved_cells`` and the volume), and the density uses it; "none"
+    counts echoes (the reference). The default "none" is the evidence of docs/validation.md's
+    "Counting against density": at the thesis' density the correction's gain in bias is smaller
+    than the noise it adds to each ping; it pays in denser schools."""
+    volume_edge: Literal["hard", "soft"] = "hard"
+    """How a detection is tested against the counting volume's elevation faces
+    (processing/detection/volume_edge.py): "hard" counts it when its located position lies
+    inside (the reference, the thesis' counting); "soft" counts it with the probability that its
+    fish lies inside given its located elevation and that elevation's Cramér–Rao σ (from its
+    SNR, the baseline and the wavelength), and adds ``count_expected``, which the densities
+    then use. The default "hard" is the evidence of docs/validation.md's "Counting against
+    density": the soft count is the posterior mean, least in squared error, but the per-ping
+    nMAE sums absolute errors, for which the hard decision is best; on the development seeds the
+    soft edge raised the per-ping nMAE at every density (7.1 % → 9.6 % at the thesis' density)."""
+    edge_interference_db: PositiveReal | None = Field(None, le=100)
+    """With ``volume_edge: soft``: a signal-to-interference ratio (dB) that caps the SNR behind σ
+    (a neighbour's echo, not the noise, limits a strong echo's elevation); null: noise only."""
 
 
 class TrackSettings(ConfigModel):
@@ -246,9 +267,27 @@ class SingleTargetSettings(ConfigModel):
     maximum_phase_deviation: NonNegativeReal | None = Field(3.0, alias="maximum_phase_deviation_deg",
                                                            le=180)
     """param_maximum_phase_deviation: maximum standard deviation (deg, electrical) of the phase
-    over the samples within the echo's −6 dB points, the larger of the two planes' (elevation:
-    ψ_AB; azimuth: the split-aperture phase of the beam-domain peak); null: not applied. Noise
-    alone gives ≈ 0.5° at SNR 50 dB and up to ≈ 3° at 38 dB: raise it for weaker echoes."""
+    over the samples within the echo's −6 dB points, in either plane (elevation: ψ_AB; azimuth:
+    the split-aperture phase of the beam-domain peak), each plane against this limit widened by
+    its own noise (``phase_deviation_sigmas``); null: not applied. Noise
+    alone gives ≈ 0.5° at SNR 50 dB and up to ≈ 3° at 38 dB, which ``phase_deviation_sigmas``
+    allows for."""
+    maximum_range_phase_deviation: NonNegativeReal | None = Field(
+        1.0, alias="maximum_range_phase_deviation_deg", le=180)
+    """Maximum standard deviation (deg) of the echo's own phase along range within its −6 dB
+    points (the mean over the subarrays' images): one echo of the matched filter's point
+    response has one phase across it (≤ 0.1° for a point target at any SNR), two echoes closer
+    than the range resolution turn it by ≈ Im(a₂/(a₁+a₂)) δ p′/p, first order in their
+    separation δ where the envelope broadens at second order (rule
+    ``maximum_range_phase_deviation``; no SONAR-netCDF4 parameter); null: not applied."""
+    phase_deviation_sigmas: NonNegativeReal = Field(2.0, le=100)
+    """k: each phase limit L becomes (L² + (k σ_noise)²)^½ at each candidate, σ_noise the
+    spread that noise alone gives the measure at that echo's samples (σ/|I| per sample, the
+    RMS over the echo; ψ_AB both channels'; the split phase × the beams' noise gain;
+    processing/backscatter/echo_criteria.py). Noise alone stays below 1.5 σ_noise
+    (docs/single_targets.md): 2 keeps weak single echoes without widening the limit for
+    strong ones. 0: the fixed limits alone, as EK60 and Echoview apply them (the reference);
+    without a noise level (detection not by a noise threshold) the fixed limits apply."""
     minimum_echo_spacing: NonNegativeReal = Field(1.0, le=100)
     """param_minimum_echo_spacing: another echo in the same beam (within one azimuth
     resolution) closer in range than this many nominal pulse lengths rejects both."""

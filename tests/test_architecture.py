@@ -198,3 +198,23 @@ def test_modules_are_small_and_of_one_concept():
     long = {name: n for name, path in MODULES.items()
             if (n := len(path.read_text().splitlines())) > 800}
     assert long == {}
+
+
+def test_no_module_outside_the_contract_indexes_a_group_by_its_name():
+    """Group paths are the contract's (processing/base/contract.py): a literal such as
+    ``tree["Processing/Counts"]`` elsewhere would go stale when the table moves a group."""
+    from processing.base import contract
+    names = {getattr(contract, n) for n in contract.__all__ if n.endswith("_GROUP")
+             and isinstance(getattr(contract, n), str)} - {"/"}
+    names |= {f"{contract.SONAR_GROUP}/{contract.BEAM_GROUP_NAME}"}
+    bad = []
+    for name, path in MODULES.items():
+        if layer_of(name) == "processing.base":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if (isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Constant)
+                    and isinstance(node.slice.value, str)
+                    and (node.slice.value in names or node.slice.value.split("/")[0] in names
+                         and "/" in node.slice.value)):
+                bad.append(f"{name}:{node.lineno} indexes {node.slice.value!r}")
+    assert bad == []

@@ -67,7 +67,7 @@ def test_abacus_sv_on_the_ek60_file_writes_cells_and_echoview_empty_cells(tmp_pa
     mvbs = list(csv.DictReader(open(tmp_path / "m.csv")))
     assert mvbs[0]["Range_start"] == "0" and mvbs[0]["Sv_mean"] == "-999"
     assert all(float(m["Sv_mean"]) > -200 for m in mvbs[1:])
-    out = xr.open_datatree(tmp_path / "sv.nc")
+    out = processing.open_tree(tmp_path / "sv.nc")
     write_mvbs_csv(out, tmp_path / "blank.csv")                 # the default: blank, as before
     assert list(csv.DictReader(open(tmp_path / "blank.csv")))[0]["Sv_mean"] == ""
     assert out.attrs["keywords"] == "EK60"                    # the recording kept as echopype wrote it

@@ -246,3 +246,47 @@ def test_report_has_every_figure_with_labelled_axes(tmp_path):
     for x, y in seen:
         for lab in (x, y):
             assert "(" in lab or lab == "ping index", lab
+
+
+# ------------------------------------------------------------- tracked runs
+def test_tracked_runs_score_as_abacus_track_and_keep_every_ping(tmp_path):
+    """With --track-pings an experiment simulates runs of consecutive pings and scores their
+    tracks: each run's numbers are those of `abacus track` on a simulation of the same pings
+    (the tracker's, not a copy), the nMAE of the track counts adds the runs' errors without
+    letting them cancel, and a ping's simulation does not depend on the run it was simulated in."""
+    from processing.tracking.tracks import track_summary
+
+    from abacus.results import TRACK_KEYS
+    sc = load("school_tracks.yaml")
+    tracked = run_experiment(sc, tmp_path / "t", pings=range(12), track_pings=6, workers=0,
+                             figure_pings=0, report=False)
+    alone = run_experiment(sc, tmp_path / "p", pings=range(12), workers=0, figure_pings=0,
+                           report=False)
+    settings = experiment_plan(sc, None)[0].settings
+    with xr.open_dataset(tracked) as ds:
+        assert list(ds["run_first_ping"].values) == [0, 6]
+        for r, first in enumerate((0, 6)):
+            want = track_summary(processing.track(simulate(sc, pings=range(first, first + 6)),
+                                                  settings))["summary"]
+            assert want["true_passages"] > 0
+            for k in TRACK_KEYS:
+                got = float(ds[f"run_{k}"].values[0, r])
+                assert got == pytest.approx(float(want[k]), abs=1e-12), k
+        c, t = ds["run_counted_passages"].values[0], ds["run_true_passages"].values[0]
+        assert float(ds["track_count_nmae"].values[0]) == pytest.approx(np.abs(c - t).sum() / t.sum(), abs=1e-12)
+        assert 0 <= float(ds["hota_mean"].values[0]) <= 1
+        pp = {k: ds[k].values for k in PER_PING_KEYS}
+    # the simulation of a ping does not depend on the run it was simulated in: its truth is the
+    # same; the detector's noise estimate (and so threshold and counts) pools a record's pings,
+    # as `abacus run` does, so a run of six pings may set a ping's threshold a little apart
+    one = _per_ping(alone)
+    for k in ("true_in_volume", "true_in_span", "true_density_per_m3", "true_sigma_bs_m2"):
+        np.testing.assert_array_equal(pp[k], one[k], err_msg=k)
+
+
+@pytest.mark.parametrize("bad", [0, 1, 13, 2.5, True])
+def test_track_pings_outside_the_experiment_is_refused(tmp_path, bad):
+    sc = text_scene(SMALL)
+    with pytest.raises(ExperimentError, match="--track-pings must be a whole number of pings from 2"):
+        run_experiment(sc, tmp_path / "x", pings=range(12), track_pings=bad, workers=0, report=False)
+    assert not (tmp_path / "x").exists()

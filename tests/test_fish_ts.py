@@ -17,6 +17,7 @@ import processing
 from acoustics.scene import SceneWarning, scene_from_text
 from acoustics.scene.targets_spec import SwimbladderTS
 from acoustics.targets.fish import body_axis, fish_amplitude, swimbladder_table
+from processing.base.dataset import stage_seconds
 
 from .conftest import ROOT
 
@@ -193,7 +194,7 @@ def test_fish_tilts_are_drawn_per_ping_from_the_scene_distribution():
     assert not np.array_equal(ts[ping == 0], ts[ping == 1])
     alone = acoustics.simulate(sc, pings=[2])["Vendor_specific"].ds["target_ts"].values
     np.testing.assert_array_equal(alone, ts[ping == 2])
-    assert "swimbladder_ts" in list(tree["Provenance"].ds["stage"].values)
+    assert "swimbladder_ts" in list(stage_seconds(tree))
 
 
 def test_point_fish_with_different_bladders_keep_their_own():
@@ -213,7 +214,7 @@ def test_point_fish_with_different_bladders_keep_their_own():
 
 def test_scenes_without_fish_do_not_run_the_stage():
     _, tree = _peak("  points:\n    - {range_m: 20, azimuth_deg: 0, elevation_deg: 0}\n")
-    assert "swimbladder_ts" not in list(tree["Provenance"].ds["stage"].values)
+    assert "swimbladder_ts" not in list(stage_seconds(tree))
 
 
 def test_a_school_of_realistic_fish_has_realistic_target_strengths():

@@ -317,7 +317,7 @@ def test_abacus_track_json_and_mot_files_of_a_small_school(school):
     tr_lines = (school / "mot" / "tracks.txt").read_text().splitlines()
     gt_lines = (school / "mot" / "gt.txt").read_text().splitlines()
     assert len(tr_lines) == ds.sizes["track_point"] > 0
-    assert len(gt_lines) == gt.sizes["target"] == 20 * SCHOOL_PINGS
+    assert len(gt_lines) == gt["target_id"].size == 20 * SCHOOL_PINGS
     tr, g = read_mot(school / "mot" / "tracks.txt"), read_mot(school / "mot" / "gt.txt")
     order = np.lexsort((ds["point_track"].values, ds["point_ping_index"].values))
     assert tr["frame"].tolist() == (ds["point_ping_index"].values[order] + 1).tolist()

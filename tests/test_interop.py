@@ -271,3 +271,114 @@ def test_the_echopype_view_calibrates_back_to_abacus_sv(tmp_path):
     assert np.nanmax(np.abs(sv[:, :, n0:] - want)) < 1e-6
     r_cells = cells["cell_range_m"].values[0, :, 0]
     assert np.max(np.abs(rng[0, 0, n0:] - r_cells)) <= 0.5 * np.median(np.diff(r_cells)) + 1e-9
+
+
+#: the groups echopype's EchoData knows (echodata/convention/1.0.yml of echopype 0.11, read from
+#: its source): its repr looks up every group of a file that holds data in this table
+ECHOPYPE_TABLE = {"/", "/Environment", "/Platform", "/Platform/NMEA", "/Provenance", "/Sonar", "/Sonar/Beam_group1",
+                  "/Sonar/Beam_group2", "/Sonar/Beam_group3", "/Sonar/Beam_group4", "/Vendor_specific"}
+
+
+def _nodes(tree) -> dict:
+    return {n.path: n.to_dataset(inherit=False) for n in tree.subtree}
+
+
+@pytest.fixture(scope="module")
+def processed():
+    """Two pings of two targets with arrivals, counted, tracked and with Sv of every cell:
+    every group abacus writes."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tree = acoustics.simulate(acoustics.load_scene("two_targets"), pings=range(2), arrivals=True)
+        return processing.sv(processing.track(processing.count(tree)), cells=True)
+
+
+@pytest.mark.parametrize("name", ["p.nc", "p.zarr"])
+def test_a_processed_file_holds_only_echopypes_groups_and_opens_as_it_was(processed, tmp_path, name):
+    """echopype's repr fails on any group outside its table that holds data (KeyError
+    'Processing/Sv'), its combine_echodata on an empty one: in the file the products and the
+    arrivals lie flat in /Vendor_specific; open_tree gives back every
+    group, variable, coordinate and attribute identical (NetCDF and Zarr)."""
+    assert {"/Processing/Sv", "/Processing/Tracks", "/Vendor_specific/Arrivals"} <= set(_nodes(processed))
+    processing.write_tree(processed, tmp_path / name)
+    how = {"engine": "zarr", "consolidated": False} if name.endswith(".zarr") else {"engine": "netcdf4"}
+    with xr.open_datatree(tmp_path / name, **how) as raw:
+        # every group, empty ones included (echopype's combine_echodata reads each as a dataset)
+        assert {n.path for n in raw.subtree} <= ECHOPYPE_TABLE
+        vend = raw["Vendor_specific"].ds
+        assert all(str(d).startswith("Processing.Sv.") for d in vend["Processing.Sv.Sv"].dims)
+        assert vend["Vendor_specific.Arrivals.arrival_delay"].dims == ("Vendor_specific.Arrivals.arrival",)
+    back = open_tree(tmp_path / name)
+    want, got = _nodes(processed), _nodes(back)
+    assert set(got) == set(want)
+    for path, ds in want.items():
+        assert got[path].identical(ds), path
+
+
+def test_a_file_with_groups_as_groups_still_opens(processed, tmp_path):
+    """A file written before the flat layout (each product its own group) opens as it was."""
+    processed.to_netcdf(tmp_path / "old.nc")
+    back = open_tree(tmp_path / "old.nc")
+    assert back["Processing/Sv"].to_dataset(inherit=False).identical(processed["Processing/Sv"].to_dataset(inherit=False))
+
+
+def test_a_damaged_map_of_the_flat_groups_is_one_line(processed, tmp_path):
+    processing.write_tree(processed, tmp_path / "p.nc")
+    t = xr.open_datatree(tmp_path / "p.nc").load()
+    t["Vendor_specific"].dataset = t["Vendor_specific"].to_dataset(inherit=False).drop_vars("Processing.Sv.Sv")
+    t.to_netcdf(tmp_path / "bad.nc")
+    with pytest.raises(processing.DatasetError, match="Processing.Sv.Sv"):
+        open_tree(tmp_path / "bad.nc")
+
+
+def test_the_truth_lies_along_ping_time_and_the_layout_before_still_processes(tmp_path):
+    """The truth rows along ping_time (each row at its ping's time: what echopype's
+    combine_echodata appends), the run timings as attributes; a file of the layout before (rows
+    along `target`, per-ping counts, timings along `stage`) gives the same truth rows, the same
+    stage timings and the same counts."""
+    from processing.base.dataset import stage_seconds
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tree = acoustics.simulate(acoustics.load_scene("two_targets"), pings=range(3))
+    gt = tree[TRUTH_GROUP].to_dataset(inherit=False)
+    times = tree[ELEMENT_GROUP].ds["ping_time"].values
+    assert gt["target_x"].dims == ("ping_time",)
+    np.testing.assert_array_equal(gt["ping_time"].values, times[gt["target_ping_index"].values])
+    assert "stage_seconds" not in tree["Provenance"].ds and set(stage_seconds(tree)) >= {"targets", "echoes"}
+    # the layout before, written with plain xarray
+    rows = gt.drop_vars("ping_time").rename_dims(ping_time="target")
+    rows = rows.assign(truth_count_total=("ping_time", np.bincount(gt["target_ping_index"].values)),
+                       ping_time=("ping_time", times))
+    rows.attrs = {k: v for k, v in gt.attrs.items() if not k.startswith("counting_range_")}
+    rows.attrs["counting_range_m"] = [gt.attrs["counting_range_min_m"], gt.attrs["counting_range_max_m"]]
+    prov = tree["Provenance"].to_dataset(inherit=False)
+    sec = stage_seconds(tree)
+    prov = prov.assign(stage_seconds=("stage", list(sec.values())), stage=("stage", list(sec)))
+    prov.attrs = {k: v for k, v in prov.attrs.items() if k not in ("stage_seconds_json", "stage_calls_json")}
+    old = tree.copy()
+    old[TRUTH_GROUP].dataset = rows
+    old["Provenance"].dataset = prov
+    old.to_netcdf(tmp_path / "old.nc")
+    back = open_tree(tmp_path / "old.nc")
+    assert stage_seconds(back) == sec
+    for k in ("target_ping_index", "target_id", "target_world_x", "target_in_counting_volume"):
+        np.testing.assert_array_equal(back[TRUTH_GROUP].ds[k].values, gt[k].values)
+    new_counts = processing.counts_of(processing.count(tree))
+    old_counts = processing.counts_of(processing.count(back))
+    for k in new_counts.data_vars:
+        np.testing.assert_array_equal(old_counts[k].values, new_counts[k].values)
+
+
+def test_sv_alone_leaves_no_empty_group_in_the_file(tmp_path):
+    """`abacus sv` on a raw file makes /Processing/Sv under an empty /Processing: the file holds
+    neither (an empty group outside echopype's table stops its combine_echodata), and open_tree
+    gives /Processing/Sv back."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tree = processing.sv(acoustics.simulate(acoustics.load_scene("two_targets"), pings=range(1)), cells=True)
+    assert not tree["Processing"].has_data
+    processing.write_tree(tree, tmp_path / "p.nc")
+    with xr.open_datatree(tmp_path / "p.nc") as raw:
+        assert {n.path for n in raw.subtree} <= ECHOPYPE_TABLE
+    back = open_tree(tmp_path / "p.nc")
+    assert back["Processing/Sv"].to_dataset(inherit=False).identical(tree["Processing/Sv"].to_dataset(inherit=False))

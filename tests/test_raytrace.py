@@ -21,7 +21,7 @@ from acoustics.simulation.run import make_setup, simulate
 from acoustics.simulation.setup import RunCache
 import processing
 from processing.imaging.compression import RangeFilter, window
-from processing.base.dataset import TRUTH_GROUP, read_record
+from processing.base.dataset import TRUTH_GROUP, read_record, stage_seconds
 
 from .conftest import SCENES
 from .test_scene import _abacus
@@ -316,12 +316,12 @@ def test_multipath_off_casts_no_multipath_rays():
     off = scene.model_copy(update={"effects": scene.effects.model_copy(update={"max_bounces": 0})})
     tree = simulate(off)
     assert "multipath" not in json.loads(tree["Provenance"].ds.attrs["rays_cast_json"])
-    assert "multipath" not in list(tree["Provenance"].ds["stage"].values)
+    assert "multipath" not in list(stage_seconds(tree))
 
 
 def test_scene_without_meshes_builds_no_ray_scene():
     tree = simulate(load("two_targets.yaml"))
-    stages = list(tree["Provenance"].ds["stage"].values)
+    stages = list(stage_seconds(tree))
     assert not {"rays_build", "occlusion", "multipath", "reverberation", "mesh_targets"} & set(stages)
     assert json.loads(tree["Provenance"].ds.attrs["rays_cast_json"]) == {}
     setup = make_setup(load("two_targets.yaml"))

@@ -25,6 +25,7 @@ from acoustics.simulation.run import make_setup, simulate
 from acoustics.simulation.ping import simulate_ping
 from acoustics.simulation.setup import RunCache
 from acoustics.synthesis.arrivals import arrivals
+from processing.base.dataset import stage_seconds
 
 
 def text_scene(text):
@@ -291,12 +292,12 @@ def test_flat_limit_through_the_simulation_equals_the_image_method():
 def test_only_a_moving_sea_runs_the_sea_stage_and_the_run_records_it():
     still = simulate(text_scene(_FLAT.format(
         mesh="{shape: plane, center_m: [15, 0, 0], normal: [0, 0, 1], size_m: [40, 20]}")))
-    assert "sea_surface" not in list(still["Provenance"].ds["stage"].values)
+    assert "sea_surface" not in list(stage_seconds(still))
     wavy = text_scene(_FLAT.format(
         mesh="{shape: swell, center_m: [15, 0], size_m: [40, 20], resolution_m: 0.5, "
              "waves: [{amplitude_m: 0.2, wavelength_m: 10.0}]}"))
     tree = simulate(wavy.model_copy(update={"pings": wavy.pings.model_copy(update={"count": 2})}))
-    stages = list(tree["Provenance"].ds["stage"].values)
+    stages = list(stage_seconds(tree))
     assert "sea_surface" in stages and "multipath" in stages
 
 
@@ -433,7 +434,7 @@ pings: {{count: 2, interval_s: 1.0}}
     assert np.abs(hits[0][:, 2].mean() - hits[1][:, 2].mean()) > 1e-3 or not np.allclose(
         hits[0][:50], hits[1][:50])
     quiet = simulate(text_scene(text.format(scattering="null")))
-    assert "reverberation" not in list(quiet["Provenance"].ds["stage"].values)
+    assert "reverberation" not in list(stage_seconds(quiet))
 
 
 @pytest.mark.parametrize("name", ["pelagic_wind_sea", "swell_ghost", "pelagic_floor_rock",

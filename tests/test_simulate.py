@@ -14,7 +14,8 @@ from acoustics.sonar.directivity import array_response, element_directivity
 from acoustics.scene import scene_from_text
 from acoustics.simulation.run import make_setup, simulate
 from acoustics.synthesis.synthesize import synthesize
-from processing.base.dataset import ELEMENT_GROUP, TRUTH_GROUP, beam_samples, open_tree, read_record, write_tree
+from processing.base.dataset import (ELEMENT_GROUP, TRUTH_GROUP, beam_samples, open_tree, read_record, stage_seconds,
+                                     write_tree)
 
 from .conftest import SCENES
 
@@ -234,20 +235,20 @@ def test_written_file_round_trips_every_variable(tmp_path, fmt, suffix):
 
 def test_stages_follow_the_scene():
     quiet = simulate(load("two_targets.yaml"))
-    stages = list(quiet["Provenance"].ds["stage"].values)
+    stages = list(stage_seconds(quiet))
     assert "echoes" in stages and "noise" not in stages and "adc" not in stages
     empty = simulate(text_scene("name: empty\n"))
-    st = list(empty["Provenance"].ds["stage"].values)
+    st = list(stage_seconds(empty))
     assert "echoes" not in st and "noise" not in st
     assert np.all(samples_of(empty) == 0)
     noisy = simulate(text_scene("name: n\nnoise: {enabled: true}\nsampling: {adc: {quantize: true}}\n"))
-    st = list(noisy["Provenance"].ds["stage"].values)
+    st = list(stage_seconds(noisy))
     assert "noise" in st and "adc" in st and "echoes" not in st
 
 
 def test_zero_noise_is_not_drawn():
     tree = simulate(text_scene("name: z\nnoise: {enabled: true, sigma_counts: 0}\n"))
-    assert "noise" not in list(tree["Provenance"].ds["stage"].values)
+    assert "noise" not in list(stage_seconds(tree))
     assert np.all(samples_of(tree) == 0)
 
 
@@ -312,11 +313,14 @@ def test_ground_truth_and_counting_volume():
     scene = load("default.yaml")
     tree = simulate(scene, pings=range(3))
     gt = tree[TRUTH_GROUP].ds
-    assert gt.sizes["target"] == 300
-    assert list(gt["truth_count_total"].values) == [100, 100, 100]
+    assert gt["target_id"].size == 300
+    assert np.bincount(gt["target_ping_index"].values).tolist() == [100, 100, 100]
+    # the rows lie along ping_time, each at its own ping's time (echopype appends them so)
+    times = tree[ELEMENT_GROUP].ds["ping_time"].values
+    np.testing.assert_array_equal(gt["ping_time"].values, times[gt["target_ping_index"].values])
     # 215.6 m³ cuboid vs the 13.8 m³ counting volume: a few per ping inside
     assert gt.attrs["counting_volume_m3"] == pytest.approx(13.8, rel=0.01)
-    assert np.all(gt["truth_count_in_volume"].values <= 100)
+    assert 0 < int(gt["target_in_counting_volume"].sum()) < 300
     z = gt["target_world_z"].values
     assert z.min() >= 15 and z.max() <= 25
     # the thesis' bounds [0.25, 1.25] m x 0.025 (scenes/default.yaml): TS -44 to -30 dB

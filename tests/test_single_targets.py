@@ -84,16 +84,135 @@ def test_echo_length_and_phase_deviation_of_a_known_envelope():
     width = 2 * sigma * np.sqrt(2 * np.log(10 ** (6 / 20)))
     slope = 0.01
     cross = env ** 2 * np.exp(1j * slope * np.arange(r.size))
-    length, pd, off = echo_shape(env, 200, range_step_m=step, cross=cross,
-                                 neighbours=np.stack([0.5 * env, 0.5 * env], -1))
+    rslope = 0.02
+    profiles = np.stack([env * np.exp(1j * rslope * np.arange(r.size)), env.astype(complex)], -1)
+    shape = echo_shape(env, 200, range_step_m=step, cross=cross, profiles=profiles,
+                       neighbours=np.stack([0.5 * env, 0.5 * env], -1))
+    length, pd, off = shape[:3]
     # the ends are interpolated linearly on a curved flank: second order in the step
     assert length == pytest.approx(width, abs=0.01 * step + step**2 / sigma)
     lo, hi = 0.8 - width / 2, 0.8 + width / 2
     n = int(np.floor(hi / step + 1e-9)) - int(np.ceil(lo / step - 1e-9)) + 1
     assert pd == pytest.approx(np.degrees(slope * np.sqrt((n * n - 1) / 12)), rel=1e-6)
     assert off == pytest.approx(0.0, abs=1e-12)         # symmetric neighbours: the peak stays put
+    # the range phase: the mean over the images of a ramp's deviation and a flat phase's zero
+    assert shape.range_phase_deviation_deg == pytest.approx(
+        0.5 * np.degrees(rslope * np.sqrt((n * n - 1) / 12)), rel=1e-6)
+    assert np.isnan(shape.noise_phase_deg)              # no noise level given: no noise share
     # an echo that runs off the image has no length (rule image_edge), never a truncated one
     assert np.isnan(echo_shape(env[:205], 200, range_step_m=step)[0])
+
+
+def test_two_echoes_within_the_range_resolution_turn_the_range_phase_at_first_order():
+    """Two echoes of a Gaussian point response p (σ_p), equal amplitudes, δ = 0.05 of the −6 dB
+    width apart, relative phase φ: to first order in δ the sum's phase along range is
+    Im(e^{iφ}/(1 + e^{iφ})) δ r / σ_p² (p′/p = −r/σ_p²), so its standard deviation over the
+    echo's samples is that slope times the samples' spread in r, within (δ/σ_p)² ≈ 1.4 %; in
+    phase (φ = 0) the sum is one echo at the centroid and its phase is flat."""
+    step, sp = 0.002, 0.02
+    r = np.arange(600) * step - 0.6
+    width = 2 * sp * np.sqrt(2 * np.log(10 ** (6 / 20)))
+    delta = 0.05 * width
+    for phi in (np.pi / 2, 2.0, -1.0):
+        echo = np.exp(-0.5 * (r / sp) ** 2) + np.exp(1j * phi) * np.exp(-0.5 * ((r - delta) / sp) ** 2)
+        env = np.abs(echo)
+        sh = echo_shape(env, int(np.argmax(env)), range_step_m=step, profiles=echo[:, None])
+        inside = r[env >= 0.5 * env.max()]
+        beta = np.exp(1j * phi) / (1 + np.exp(1j * phi))
+        predicted = np.degrees(abs(beta.imag) * delta / sp ** 2 * np.std(inside))
+        assert sh.range_phase_deviation_deg == pytest.approx(predicted, rel=0.05)
+    inphase = np.exp(-0.5 * (r / sp) ** 2) + np.exp(-0.5 * ((r - delta) / sp) ** 2)
+    sh = echo_shape(np.abs(inphase), int(np.argmax(np.abs(inphase))), range_step_m=step,
+                    profiles=inphase.astype(complex)[:, None])
+    assert sh.range_phase_deviation_deg == pytest.approx(0.0, abs=1e-9)
+
+
+def test_noise_alone_gives_the_phase_spread_of_sigma_over_the_magnitude():
+    """One echo (a Gaussian envelope, flat phase) in two channels with independent white complex
+    noise of Rayleigh scale σ: per sample the phase noise is σ/|I| (small-noise limit), so the
+    mean square of the echo's range phase deviation is (1 − 1/n) mean(σ²/|I|²) (the samples'
+    mean is removed), and that of ψ_AB's the same with both channels' noise. Monte Carlo at 40
+    dB peak SNR, 2000 echoes: within 5 % (the estimate's spread is ≈ 2 %)."""
+    rng = np.random.default_rng(3)
+    step, width, sigma, m = 0.004, 0.02, 0.01, 2000
+    r = np.arange(120) * step
+    env = np.exp(-0.5 * ((r - 0.24) / width) ** 2)           # peak 1: 20 log10(1/σ) = 40 dB
+    rp, ab, noise1, noise_ab, nrows = [], [], [], [], []
+    for _ in range(m):
+        a = env + sigma * (rng.standard_normal(r.size) + 1j * rng.standard_normal(r.size))
+        b = env + sigma * (rng.standard_normal(r.size) + 1j * rng.standard_normal(r.size))
+        sh = echo_shape(np.abs(a), 60, range_step_m=step, cross=a * np.conj(b), profiles=a[:, None],
+                        noise_sigma=sigma)
+        rp.append(sh.range_phase_deviation_deg)
+        ab.append(sh.phase_deviation_deg)
+        noise1.append(sh.noise_phase_deg)
+        noise_ab.append(sh.noise_phase_ab_deg)
+        nrows.append(int(round(sh.length_m / step)))
+    shrink = 1 - 1 / np.mean(nrows)
+    assert np.sqrt(np.mean(np.square(rp))) == pytest.approx(np.sqrt(shrink * np.mean(np.square(noise1))), rel=0.05)
+    assert np.sqrt(np.mean(np.square(ab))) == pytest.approx(np.sqrt(shrink * np.mean(np.square(noise_ab))), rel=0.05)
+    # ψ_AB carries both channels' noise: √2 one channel's (equal magnitudes)
+    assert np.mean(noise_ab) / np.mean(noise1) == pytest.approx(np.sqrt(2), rel=0.01)
+
+
+def test_split_phase_noise_gain_against_beamformed_noise():
+    """The split-aperture phase of the beam-domain peak (a parabola through three FFT beams of an
+    8-element Hamming-weighted array, 32 beams) moved by element noise alone: its standard
+    deviation is g_split σ/|I| (σ the beams' Rayleigh scale, |I| the echo's beam magnitude),
+    g_split from :func:`split_phase_noise_gain`. Monte Carlo, 20000 draws at 40 dB: within 5 %."""
+    from processing.backscatter.echo_criteria import split_phase_noise_gain
+    from processing.detection.peaks import refine
+    rng = np.random.default_rng(5)
+    lam, pitch, n, nbeam = 0.00364, 0.015, 8, 32
+    x = (np.arange(n) - (n - 1) / 2) * pitch
+    w = np.hamming(n)
+    du = lam / (nbeam * pitch)
+    u = np.array([-du, 0.0, du])                         # the echo on the centre beam
+    steer = np.exp(-1j * 2 * np.pi / lam * np.outer(u, x)) * w   # (3 beams, n elements)
+    s_el, m = 0.01, 20000
+    noise = s_el * (rng.standard_normal((m, n)) + 1j * rng.standard_normal((m, n)))
+    beams = np.abs((1.0 + noise) @ steer.T)             # a plane wave on axis, amplitude 1
+    off, _ = refine(beams[:, 0], beams[:, 1], beams[:, 2])
+    d_split = (x[-1] - x[0]) * n / (2 * (n - 1))
+    split_deg = np.degrees(2 * np.pi / lam * d_split * du * off)
+    sigma_beam = s_el * np.sqrt(np.sum(w ** 2))         # per quadrature, in the beam
+    magnitude = np.sum(w)
+    g = split_phase_noise_gain(x, w, du, lam, d_split)
+    assert np.std(split_deg) == pytest.approx(g * np.degrees(sigma_beam / magnitude), rel=0.05)
+
+
+def test_phase_limits_widen_with_the_noise_in_quadrature(tmp_path):
+    """k = 0 is the fixed limit (EK60/Echoview); k > 0 adds k σ_noise in quadrature, per plane;
+    the range phase rule follows the angle rules."""
+    from processing.backscatter.echo_criteria import phase_limit_deg
+    assert phase_limit_deg(3.0, [4.0 / 2, np.nan], 2.0) == pytest.approx([5.0, 3.0])
+    assert np.all(np.isinf(phase_limit_deg(None, [1.0], 2.0)))
+    n = 3
+    ok = dict(sidelobe=np.zeros(n, bool), ts_comp_db=np.full(n, -40.0), echo_length=np.ones(n),
+              compensation_db=np.zeros(n), spacing=np.full(n, np.inf))
+    # planes: elevation 4.5° with noise 2° (limit 5°), azimuth 1° with noise 0 -> passes at k = 2
+    dev = np.array([[4.5, 1.0, 0.5], [1.0, 5.5, 0.5]])
+    nz = np.array([[2.0, 0.0, 0.0], [0.0, 2.0, 0.0]])
+    rp, rpn = np.array([0.5, 0.5, 1.2]), np.array([0.1, 0.1, 0.1])
+    k2 = SingleTargetSettings(phase_deviation_sigmas=2.0)
+    k0 = SingleTargetSettings(phase_deviation_sigmas=0.0)
+    got = verdicts(**ok, phase_deviation_deg=dev, phase_noise_deg=nz, range_phase_deviation_deg=rp,
+                   range_phase_noise_deg=rpn, settings=k2).tolist()
+    assert got == ["", "maximum_phase_deviation", "maximum_range_phase_deviation"]
+    got = verdicts(**ok, phase_deviation_deg=dev, phase_noise_deg=nz, range_phase_deviation_deg=rp,
+                   range_phase_noise_deg=rpn, settings=k0).tolist()
+    assert got == ["maximum_phase_deviation", "maximum_phase_deviation", "maximum_range_phase_deviation"]
+    # a bad value is one line naming the key
+    from processing.base.config import ConfigError
+    from processing.settings import load_settings
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("single_target: {phase_deviation_sigmas: -1}\n")
+    with pytest.raises(ConfigError) as e:
+        load_settings(bad)
+    assert "phase_deviation_sigmas" in str(e.value) and len(str(e.value).strip().splitlines()) == 1
+    off = SingleTargetSettings(maximum_range_phase_deviation_deg=None)
+    assert verdicts(**ok, phase_deviation_deg=dev[:, 2:].repeat(3, 1), range_phase_deviation_deg=rp,
+                    settings=off).tolist() == [""] * n
 
 
 def test_a_candidate_is_named_by_the_first_rule_it_fails():
@@ -236,8 +355,8 @@ def test_pairs_closer_than_one_echo_length_are_rejected():
     """Ten pairs of fish in the same beam, 0.3–1.0 echo lengths apart in range (overlapping
     echoes: one envelope, too long or split, its phase drifting from one fish's angle to the
     other's): at least 9 of 10 yield no single target. Pairs closer than ≈ 0.25 echo lengths
-    (within the range resolution) look like one echo to every criterion
-    (docs/single_targets.md)."""
+    (within the range resolution) are told by their phase alone, and not when their echoes are
+    in phase (docs/single_targets.md)."""
     from acoustics.scene.load import scene_from_text
     text, truth = _fish_scene(True, 11)
     with warnings.catch_warnings():

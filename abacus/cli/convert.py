@@ -51,7 +51,8 @@ def command(args) -> int:
     if model is not None and fmt == SONAR_NETCDF2:
         raise UsageError(f"{src}: a {model} file as echopype converted it is checked and written back as "
                          f"SONAR-netCDF4 1.0 only; --format sonar-netcdf4-2 writes per-element records")
-    n = tree["Sonar/Beam_group1"].ds.sizes
+    from processing.base.dataset import ELEMENT_GROUP, group_of
+    n = group_of(tree, ELEMENT_GROUP).sizes
     with staged_set() as outputs:
         save_tree(tree, outputs.path(out), final=out, fmt=fmt)
     if model is not None:

@@ -43,7 +43,9 @@ def command(args) -> int:
             write_single_targets_csv(tree, outputs.path(tcsv), args.settings)
         if plots is not None:
             from abacus.figures.plots import count_figures
-            n = tree["Processing/Counts"].sizes["ping_time"]
+            from processing.base.contract import COUNTS_GROUP
+            from processing.base.dataset import group_of
+            n = group_of(tree, COUNTS_GROUP).sizes["ping_time"]
             tmp = outputs.path(plots)
             tmp.mkdir()
             count_figures(tree, tmp, pings=range(min(n, 5)))

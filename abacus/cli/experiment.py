@@ -25,6 +25,10 @@ def add_parser(sub):
     e.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://host:8786")
     e.add_argument("--format", choices=["netcdf", "zarr"], help="results format (default netcdf)")
     e.add_argument("--restart", action="store_true", help="discard finished pings of an earlier run in DIR")
+    e.add_argument("--track-pings", type=int, metavar="N",
+                   help="track runs of N consecutive pings (one task each) and score them as "
+                        "`abacus track` does: HOTA, IDF1, MOTA per run, and the nMAE of the track "
+                        "counts over the runs")
     e.set_defaults(func=command)
 
 
@@ -38,7 +42,8 @@ def command(args) -> int:
         t0 = time.perf_counter()
         path = run_experiment(scene, out, pings=ping_list(scene, args.pings), sweep=sweep,
                               workers=args.workers, scheduler=args.scheduler, fmt=fmt,
-                              restart=args.restart, progress=Progress("experiment"))
+                              restart=args.restart, progress=Progress("experiment"),
+                              track_pings=args.track_pings)
     except ExperimentError as exc:
         raise UsageError(str(exc)) from None
     import xarray as xr
@@ -57,6 +62,13 @@ def command(args) -> int:
             if np.isfinite(ds["ts_true_db"].isel(setting=0)):
                 line += f" (true mean σ_bs: {float(ds['ts_true_db'].isel(setting=0)):.2f} dB)"
             print(line)
+        if "track_count_nmae" in ds and np.isfinite(ds["track_count_nmae"].isel(setting=0)):
+            b = ds.isel(setting=0)
+            print(f"tracks over {ds.sizes['run']} run(s) of {int(ds.attrs['track_pings'])} pings: "
+                  f"{int(b['run_counted_passages'].sum())} counted for "
+                  f"{int(b['run_true_passages'].sum())} true passages, nMAE "
+                  f"{float(b['track_count_nmae']):.3f}; HOTA {float(b['hota_mean']):.3f}, "
+                  f"IDF1 {float(b['idf1_mean']):.3f}, MOTA {float(b['mota_mean']):.3f} (means over the runs)")
         for note in [n for n in str(ds.attrs.get("notes", "")).split("; ") if n]:
             print(f"warning: {note}", file=sys.stderr)
         if int(ds.attrs.get("parts_recomputed_damaged", 0)):

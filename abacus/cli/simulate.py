@@ -43,13 +43,13 @@ def command(args) -> int:
                     progress=Progress("simulate"), arrivals=True if args.arrivals else None)
     with staged_set() as outputs:
         save_tree(tree, outputs.path(out), final=out, fmt=fmt)
-    prov = tree["Provenance"].ds
+    from processing.base.contract import ARRIVALS_GROUP
+    from processing.base.dataset import group_of, stage_seconds
     n_p = tree[ELEMENT_GROUP].sizes["ping_time"]
-    arrivals = ""
-    if "Arrivals" in tree["Vendor_specific"].children:
-        arrivals = f", {tree['Vendor_specific/Arrivals'].sizes['arrival']} arrival(s)"
+    table = group_of(tree, ARRIVALS_GROUP)
+    arrivals = "" if table is None else f", {table.sizes['arrival']} arrival(s)"
     print(f"wrote {out} ({fmt}): {n_p} ping(s){arrivals}; stages: "
-          + ", ".join(f"{s} {t:.2f} s" for s, t in zip(prov["stage"].values, prov["stage_seconds"].values)))
+          + ", ".join(f"{s} {t:.2f} s" for s, t in stage_seconds(tree).items()))
     clipped = tree[ELEMENT_GROUP].ds.get("adc_clipped_samples")
     if clipped is not None and int(clipped.sum()):
         print(f"warning: the ADC clipped {int(clipped.sum())} samples", file=sys.stderr)

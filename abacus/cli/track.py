@@ -101,7 +101,9 @@ def command(args) -> int:
         inputs=[args.input, args.settings])
     tree = open_tree(args.input, max_memory_gb=args.max_memory, work_factor=3.0)
     _check_ping_times(tree, str(args.input))
-    if "Processing" not in tree.children or "Counts" not in tree["Processing"].children:
+    from processing.base.contract import COUNTS_GROUP
+    from processing.base.dataset import has_group
+    if not has_group(tree, COUNTS_GROUP):
         tree = processing.count(tree, args.settings)
     tree = processing.track(tree, args.settings)
     result = track_summary(tree)

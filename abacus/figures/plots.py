@@ -381,7 +381,8 @@ def count_figure_data(tree, *, pings=(0,), max_pings: int = 5, counts: bool = Tr
         (n_pings,) (ping_index, counts, errors, density in m⁻³), or None.
     """
     from abacus.figures.calibrated import colour_span_db, echogram_calibration
-    from processing.base.dataset import TRUTH_GROUP
+    from processing.base.contract import DETECTIONS_GROUP
+    from processing.base.dataset import TRUTH_GROUP, group_of
     from processing.records import counts_of, detections_of, figure_images
 
     pings = list(pings)[:max_pings]
@@ -393,7 +394,7 @@ def count_figure_data(tree, *, pings=(0,), max_pings: int = 5, counts: bool = Tr
     if TRUTH_GROUP in tree.children and "target_x" in tree[TRUTH_GROUP].ds:
         gt = tree[TRUTH_GROUP].ds
         truth = (gt["target_ping_index"].values, np.stack([gt[f"target_{a}"].values for a in "xyz"], -1))
-    attrs = tree["Processing/Detections"].ds.attrs
+    attrs = group_of(tree, DETECTIONS_GROUP).attrs
     volume = {"azimuth_halfwidth_rad": float(attrs["counting_azimuth_halfwidth_rad"]),
               "elevation_halfwidth_rad": float(attrs["counting_elevation_halfwidth_rad"]),
               "counting_range_m": tuple(float(v) for v in attrs["counting_range_m"])}

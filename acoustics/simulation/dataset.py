@@ -56,18 +56,20 @@ def provenance_dataset(scene, seed: int, log, rays_cast: dict | None = None) -> 
     Returns
     -------
     xarray.Dataset
-        ``stage_seconds`` (s) and ``stage_calls`` along ``stage``; the rest as attributes.
+        ``source_filenames`` along ``filenames``; the rest, the stages' wall times (s) and calls
+        included (``stage_seconds_json``, ``stage_calls_json``), as attributes: two runs'
+        timings differ by nature, and echopype combines files whose variables agree.
     """
     names = log.names
     return build_group(
         PROVENANCE_GROUP,
-        {"stage_seconds": np.array([log.seconds[k] for k in names]),
-         "stage_calls": np.array([log.calls[k] for k in names]),
-         "stage": np.array(names, dtype=str),
-         "source_filenames": [str(scene.source_path or scene.name)], "filenames": [0]},
+        {"source_filenames": [str(scene.source_path or scene.name)], "filenames": [0]},
         attrs={"scene_text": scene.resolved_text(), "scene_sha256": scene.sha256(),
                "scene_file": str(scene.source_path or ""), "seed": int(seed),
-               "stages_run": ",".join(names), "versions": json.dumps(versions()),
+               "stages_run": ",".join(names),
+               "stage_seconds_json": json.dumps({k: float(log.seconds[k]) for k in names}),
+               "stage_calls_json": json.dumps({k: int(log.calls[k]) for k in names}),
+               "versions": json.dumps(versions()),
                "rays_cast_json": json.dumps(rays_cast or {}),
                "command": " ".join(sys.argv),
                # what echopype's Provenance holds (combine_echodata reads it)
@@ -331,7 +333,6 @@ def _truth(setup, pings, ping_time, truth) -> xr.Dataset:
     inside = volume.contains(ps)
     with np.errstate(divide="ignore"):
         ts = np.where(rho > 0, 20 * np.log10(np.where(rho > 0, rho, 1.0)), -np.inf)
-    per_ping_in = np.array([int(v.sum()) for v in np.split(inside, np.cumsum(n)[:-1])]) if truth else np.zeros(0, int)
     return build_group(
         TRUTH_GROUP,
         {"target_ping_index": ping_of,
@@ -344,11 +345,10 @@ def _truth(setup, pings, ping_time, truth) -> xr.Dataset:
          "target_velocity_world_z": vel[:, 2],
          "target_in_counting_volume": inside.astype(np.int8),
          "target_shadowed": shd.astype(np.int8),
-         "truth_count_total": np.asarray(n, np.int64),
-         "truth_count_in_volume": per_ping_in.astype(np.int64),
-         "ping_time": ping_time},
+         "ping_time": np.repeat(np.asarray(ping_time), n)},
         attrs={"counting_volume": "transmitter 3 dB beam (azimuth, elevation) x image range limits",
-               "counting_range_m": list(volume.range_m),
+               "counting_range_min_m": float(volume.range_m[0]),
+               "counting_range_max_m": float(volume.range_m[1]),
                "counting_azimuth_halfwidth_rad": volume.azimuth_halfwidth_rad,
                "counting_elevation_halfwidth_rad": volume.elevation_halfwidth_rad,
                "counting_volume_m3": volume.volume_m3})

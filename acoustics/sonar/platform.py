@@ -17,7 +17,7 @@ import numpy as np
 from acoustics.frames import Pose
 from processing.base.config import ConfigError
 
-__all__ = ["attitude_rotation", "PlatformMotion", "read_motion_csv", "MotionFileError", "pose_at_time_zero",
+__all__ = ["attitude_rotation", "PlatformMotion", "read_motion_csv", "MotionFileError",
            "MOTION_BOUNDS", "MOTION_COLUMNS", "motion_value_problem", "motion_time_problem",
            "MAX_MOTION_FILE_BYTES", "MAX_MOTION_ROWS"]
 
@@ -393,13 +393,3 @@ class PlatformMotion:
         r = np.linalg.norm(p - at_tx.position_m, axis=1)
         position, rot = self.poses(mount, t_s + 2.0 * r / sound_speed_m_s)
         return np.einsum("nji,nj->ni", rot, p - position)
-
-
-def pose_at_time_zero(scene) -> Pose:
-    """The sonar's world pose at ping 0 (t = 0): where moving targets given relative to the
-    sonar start from."""
-    from acoustics.sonar.build import build_sonar
-    mount = build_sonar(scene).pose
-    if scene.sonar.motion is None:
-        return mount
-    return PlatformMotion.from_spec(scene.sonar.motion, scene.resolve_path).pose(mount, 0.0)

@@ -20,6 +20,24 @@ images give the same measures per detection, in the beam the detection lies in:
   halves of the receive subarray, ψ_split = k d_split Δ(sin θ), d_split half the aperture,
   the phase a split aperture would measure. One target's phases are the same along its echo;
   two targets at different angles pull them from one's to the other's along the overlap.
+* **range phase deviation**: the standard deviation (deg) of the echo's own phase along range,
+  arg(I(r) I(r_peak)*), over the same samples, in each imaged subarray (the mean of A's and
+  B's). The matched filter's point response has one phase across its main lobe (the compressed
+  pulse is real at baseband), so one echo's phase is flat; two echoes closer than the range
+  resolution, with amplitudes a₁, a₂ e^{iφ} and ranges δ apart, sum to
+  (a₁ + a₂e^{iφ}) p(r − r̄) − a₂e^{iφ} δ p′(r − r̄) + O(δ²): the quadrature part of the second
+  term turns the phase along the echo by ≈ Im(a₂e^{iφ}/(a₁ + a₂e^{iφ})) δ p′/p, first order
+  in δ where the envelope's broadening is second order. Two echoes in phase (φ ≈ 0) add to a
+  single echo at their centroid, which nothing in the echo can tell apart.
+* **the noise's share**: each sample of one channel carries a phase noise σ/|I| (rad, σ the
+  image noise's Rayleigh scale); over the echo's samples its RMS is
+  σ_1 = σ (mean 1/|I|²)^½, which bounds the standard deviation noise alone gives (the
+  samples are correlated, and their mean is removed). ψ_AB carries both channels',
+  σ (mean 1/|I_A|² + 1/|I_B|²)^½; the split-aperture phase of the beam-domain peak
+  g_split σ_1 (:func:`split_phase_noise_gain`); the range phase σ_1. With
+  ``phase_deviation_sigmas`` = k > 0 a limit L becomes (L² + (k σ_noise)²)^½ per candidate:
+  the fixed limit bounds what the target may add, the noise adds in quadrature
+  (:func:`phase_limit_deg`).
 * **beam compensation**: one-way, half the two-way compensation at the located angles
   (processing/backscatter/target_strength.py).
 * **echo spacing**: the range to the nearest other echo in the same beam (within one azimuth
@@ -34,11 +52,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["RULES", "nominal_echo_length_m", "echo_shape", "echo_spacing", "verdicts"]
+from typing import NamedTuple
+
+__all__ = ["RULES", "EchoShape", "nominal_echo_length_m", "echo_shape", "echo_spacing",
+           "split_phase_noise_gain", "phase_limit_deg", "verdicts"]
 
 #: the rules, in the order they are tested; a rejected candidate names the first it fails
 RULES = ("sidelobe", "image_edge", "TS_threshold", "minimum_echo_duration", "maximum_echo_duration",
-         "maximum_phase_deviation", "gain_compensation", "minimum_echo_spacing")
+         "maximum_phase_deviation", "maximum_range_phase_deviation", "gain_compensation",
+         "minimum_echo_spacing")
 
 
 def nominal_echo_length_m(response, rate_hz: float, sound_speed_m_s: float, *, level_db: float = 6.0,
@@ -89,9 +111,28 @@ def _crossings(env, i, fraction):
     return lo, hi
 
 
+class EchoShape(NamedTuple):
+    """The measures of one echo in one beam (:func:`echo_shape`); NaN where not measured."""
+
+    length_m: float
+    """Echo length (m) between the envelope's −level_db points."""
+    phase_deviation_deg: float
+    """Standard deviation of ψ_AB over the samples within the ends (deg, electrical)."""
+    beam_offset_sd: float
+    """Standard deviation of the beam-domain peak over the same samples (beam steps)."""
+    range_phase_deviation_deg: float
+    """Standard deviation of the echo's own phase along range (deg), the mean over the
+    subarrays' images given."""
+    noise_phase_deg: float
+    """RMS over the samples of σ/|I| (deg): the phase spread one channel's noise gives."""
+    noise_phase_ab_deg: float
+    """RMS over the samples of σ (1/|I_A|² + 1/|I_B|²)^½ (deg): the noise's spread of ψ_AB."""
+
+
 def echo_shape(envelope, row: int, *, range_step_m: float, level_db: float = 6.0, cross=None,
-               neighbours=None, search_rows: int = 2):
-    """Echo length and phase deviation of one echo in one beam.
+               neighbours=None, profiles=None, noise_sigma: float | None = None,
+               search_rows: int = 2) -> EchoShape:
+    """Echo length, phase deviations and the noise's share of them, of one echo in one beam.
 
     Parameters
     ----------
@@ -107,30 +148,32 @@ def echo_shape(envelope, row: int, *, range_step_m: float, level_db: float = 6.0
         I_A I_B* along the same beam (interferometric mode), for the phase deviation.
     neighbours : array_like, shape (n_range, 2), optional
         |I_A| in the beams either side (lower, higher beam angle), for the azimuth deviation.
+    profiles : array_like of complex, shape (n_range, n_images), optional
+        The complex images along the same beam (A, and B in interferometric mode), for the
+        range phase deviation.
+    noise_sigma : float, optional
+        The image noise's Rayleigh scale σ (counts; E|n|² = 2σ²), for the noise's share;
+        NaN or None: not given (the noise terms are NaN).
 
     Returns
     -------
-    length_m : float
-        Echo length (m); NaN when the echo runs off the image (its end is not seen).
-    phase_deviation_deg : float
-        Standard deviation of ψ_AB over the samples within the ends (deg); NaN without ``cross``
-        or when the echo runs off the image.
-    beam_offset_sd : float
-        Standard deviation of the beam-domain peak over the same samples (in beam steps); NaN
-        without ``neighbours``.
+    EchoShape
+        All NaN when the echo runs off the image (its end is not seen); each phase measure NaN
+        without its input.
     """
+    nan = EchoShape(*([np.nan] * 6))
     env = np.asarray(envelope, float)
     n = env.size
     a, b = max(0, row - search_rows), min(n, row + search_rows + 1)
     peak = a + int(np.argmax(env[a:b]))
     if not env[peak] > 0:
-        return np.nan, np.nan, np.nan
+        return nan
     lo, hi = _crossings(env, peak, 10.0 ** (-level_db / 20.0))
     if not (np.isfinite(lo) and np.isfinite(hi)):
-        return np.nan, np.nan, np.nan
+        return nan
     length = float((hi - lo) * range_step_m)
     rows = np.arange(int(np.ceil(lo)), int(np.floor(hi)) + 1)
-    phase_sd = offset_sd = np.nan
+    phase_sd = offset_sd = range_sd = noise1 = noise_ab = np.nan
     if cross is not None:
         c = np.asarray(cross, complex)
         ref = c[peak]
@@ -144,7 +187,86 @@ def echo_shape(envelope, row: int, *, range_step_m: float, level_db: float = 6.0
         nb = np.asarray(neighbours, float)
         off, _ = refine(nb[rows, 0], env[rows], nb[rows, 1])
         offset_sd = float(np.std(off)) if rows.size >= 2 else 0.0
-    return length, phase_sd, offset_sd
+    if profiles is not None:
+        pr = np.asarray(profiles, complex).reshape(n, -1)
+        rel = pr[rows] * np.conj(pr[peak])[None, :]
+        range_sd = float(np.degrees(np.mean(np.std(np.angle(rel), axis=0)))) if rows.size >= 2 else 0.0
+    if noise_sigma is not None and np.isfinite(noise_sigma):
+        inv_a = 1.0 / np.maximum(env[rows], np.finfo(float).tiny) ** 2
+        noise1 = float(np.degrees(noise_sigma * np.sqrt(np.mean(inv_a))))
+        if cross is not None:
+            # |I_B| = |I_A I_B*| / |I_A|
+            mag_b = np.abs(np.asarray(cross, complex)[rows]) / np.maximum(env[rows], np.finfo(float).tiny)
+            inv_b = 1.0 / np.maximum(mag_b, np.finfo(float).tiny) ** 2
+            noise_ab = float(np.degrees(noise_sigma * np.sqrt(np.mean(inv_a + inv_b))))
+    return EchoShape(length, phase_sd, offset_sd, range_sd, noise1, noise_ab)
+
+
+def split_phase_noise_gain(x_m, weights, beam_step_u: float, wavelength_m: float,
+                           split_m: float) -> float:
+    """The noise's spread of the split-aperture phase of the beam-domain peak, in units of one
+    channel's phase noise σ/|I|.
+
+    The peak's offset is the parabola through the magnitudes of the echo's beam and its two
+    neighbours, off = (m₋ − m₊) / (2 (m₋ − 2m₀ + m₊)) beam steps. Near the beam's centre the
+    noise moves it by the difference of the neighbours' in-phase noises (variance
+    2σ²(1 − ρ₂), ρ₂ the correlation of beams two steps apart, Σw² e^{ik x 2Δu} / Σw²) over
+    twice the curvature |m₋ − 2m₀ + m₊| = |I| (2 − 2P(Δu)), P the normalised beam pattern one
+    step off; the split phase is k d_split Δu off.
+
+    Parameters
+    ----------
+    x_m : array_like, shape (n_elements,)
+        The imaged subarray's element positions along the array (m).
+    weights : array_like, shape (n_elements,)
+        The beamformer's spatial window.
+    beam_step_u : float
+        Step between beams in sin θ.
+    wavelength_m, split_m : float
+        Wavelength and the distance between the two halves' centres (m).
+
+    Returns
+    -------
+    float
+        g_split (dimensionless, ≥ 0; NaN for fewer than two elements or no curvature).
+    """
+    x = np.asarray(x_m, float)
+    w = np.asarray(weights, float)
+    if x.size < 2 or not np.sum(w) > 0:
+        return float("nan")
+    k = 2 * np.pi / wavelength_m
+    xc = x - np.sum(w * x) / np.sum(w)
+    pattern = abs(np.sum(w * np.exp(1j * k * xc * beam_step_u))) / np.sum(w)
+    rho2 = float(np.real(np.sum(w ** 2 * np.exp(2j * k * xc * beam_step_u))) / np.sum(w ** 2))
+    curvature = 2.0 - 2.0 * pattern
+    if not curvature > 0:
+        return float("nan")
+    return float(k * split_m * beam_step_u * np.sqrt(max(2.0 * (1.0 - rho2), 0.0)) / (2.0 * curvature))
+
+
+def phase_limit_deg(limit_deg, noise_deg, sigmas: float):
+    """The limit of a phase rule at each candidate: (L² + (k σ_noise)²)^½ — the fixed limit
+    bounds what the target may add, the noise adds in quadrature; L where the noise is not
+    known (NaN) or k = 0 (the fixed limit alone: the EK60/Echoview convention).
+
+    Parameters
+    ----------
+    limit_deg : float or None
+        The fixed limit L (deg); None: the rule is not applied (all inf).
+    noise_deg : array_like, shape (n,)
+        The noise's spread σ_noise of the measure at each candidate (deg).
+    sigmas : float
+        k.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    noise = np.asarray(noise_deg, float)
+    if limit_deg is None:
+        return np.full(noise.shape, np.inf)
+    extra = np.where(np.isfinite(noise), float(sigmas) * noise, 0.0)
+    return np.sqrt(float(limit_deg) ** 2 + extra ** 2)
 
 
 def echo_spacing(ping, range_m, azimuth_rad, candidate, *, azimuth_resolution_rad: float):
@@ -179,7 +301,8 @@ def echo_spacing(ping, range_m, azimuth_rad, candidate, *, azimuth_resolution_ra
 
 
 def verdicts(*, sidelobe, ts_comp_db, echo_length, phase_deviation_deg, compensation_db,
-             spacing, settings):
+             spacing, settings, phase_noise_deg=None, range_phase_deviation_deg=None,
+             range_phase_noise_deg=None):
     """The first rule of :data:`RULES` each candidate fails ("" when it is a single target).
 
     Parameters
@@ -191,8 +314,15 @@ def verdicts(*, sidelobe, ts_comp_db, echo_length, phase_deviation_deg, compensa
         beam) unless an earlier rule fails.
     echo_length : array_like, shape (n,)
         Normalised echo length; NaN: the echo runs off the image (``image_edge``).
-    phase_deviation_deg : array_like, shape (n,)
-        NaN: no phase (not interferometric), the rule is skipped.
+    phase_deviation_deg : array_like, shape (n,) or (n_planes, n)
+        The phase deviations (deg, electrical) of each plane (elevation ψ_AB, azimuth's split
+        phase); a candidate fails when any plane exceeds its limit. NaN: no phase in that plane,
+        not tested there.
+    phase_noise_deg : array_like, same shape as ``phase_deviation_deg``, optional
+        The noise's spread of each (deg; :class:`EchoShape`, :func:`split_phase_noise_gain`);
+        with ``settings.phase_deviation_sigmas`` it widens the limit (:func:`phase_limit_deg`).
+    range_phase_deviation_deg, range_phase_noise_deg : array_like, shape (n,), optional
+        The range phase deviation and its noise's spread (deg); NaN or not given: not tested.
     compensation_db : array_like, shape (n,)
         One-way beam compensation (dB, ≥ 0 in the main lobe).
     spacing : array_like, shape (n,)
@@ -206,7 +336,17 @@ def verdicts(*, sidelobe, ts_comp_db, echo_length, phase_deviation_deg, compensa
     st = settings
     ts = np.asarray(ts_comp_db, float)
     el = np.asarray(echo_length, float)
-    pd = np.asarray(phase_deviation_deg, float)
+    pd = np.atleast_2d(np.asarray(phase_deviation_deg, float))
+    pn = (np.full(pd.shape, np.nan) if phase_noise_deg is None
+          else np.broadcast_to(np.atleast_2d(np.asarray(phase_noise_deg, float)), pd.shape))
+    k = st.phase_deviation_sigmas
+    # NaN compares False: a plane without a phase does not fail
+    phase_bad = np.any(pd > phase_limit_deg(st.maximum_phase_deviation, pn, k), axis=0)
+    rpd = (np.full(ts.shape, np.nan) if range_phase_deviation_deg is None
+           else np.asarray(range_phase_deviation_deg, float))
+    rpn = (np.full(ts.shape, np.nan) if range_phase_noise_deg is None
+           else np.asarray(range_phase_noise_deg, float))
+    range_bad = rpd > phase_limit_deg(st.maximum_range_phase_deviation, rpn, k)
     comp = np.asarray(compensation_db, float)
     tests = {
         "sidelobe": np.asarray(sidelobe, bool),
@@ -214,8 +354,8 @@ def verdicts(*, sidelobe, ts_comp_db, echo_length, phase_deviation_deg, compensa
         "TS_threshold": ts < st.ts_threshold_db,
         "minimum_echo_duration": el < st.minimum_echo_duration,
         "maximum_echo_duration": el > st.maximum_echo_duration,
-        "maximum_phase_deviation": (np.zeros(pd.shape, bool) if st.maximum_phase_deviation is None
-                                    else pd > st.maximum_phase_deviation),
+        "maximum_phase_deviation": phase_bad,
+        "maximum_range_phase_deviation": range_bad,
         "gain_compensation": ~np.isfinite(ts) | ~(comp <= st.gain_compensation_db),
         "minimum_echo_spacing": np.asarray(spacing, float) < st.minimum_echo_spacing,
     }

@@ -1,12 +1,11 @@
 """abacus' calibrated image as echopype calibrates a Simrad EK60: the documented conversion that
-lets echopype's ``open_converted``, ``repr``, ``combine_echodata`` and ``compute_Sv`` run on an
-abacus dataset.
+lets echopype's ``compute_Sv`` (and its MVBS) run on abacus' Sv.
 
-echopype calibrates only the sonars it knows (its ``compute_Sv`` looks the root's ``keywords`` up
-among EK60, EK80, AZFP, ...: ``KeyError 'ABACUS'`` otherwise), shows only the groups of its
-convention table (``repr`` of a file with /Processing: ``KeyError 'Processing'``) and combines
-files whose /Vendor_specific is identical (abacus keeps its per-ping ground truth there). The
-view writes what ABACUS measured in the EK60's terms instead:
+echopype opens abacus' own datasets, prints their repr and combines them (their /Processing
+products lie flat in /Vendor_specific in the file: processing/base/file_layout.py), but it
+calibrates only the sonars it knows (its ``compute_Sv`` looks the root's ``keywords`` up among
+EK60, EK80, AZFP, ...: ``KeyError 'ABACUS'`` otherwise) and appends no product of processing.
+The view writes what ABACUS measured in the EK60's terms instead:
 
 * one **channel per beam** of the image (subarray A by default), its samples the image's range
   cells, ``sample_interval`` = 2 Δr / c;
@@ -31,7 +30,7 @@ import datetime as _dt
 import numpy as np
 import xarray as xr
 
-from processing.base.contract import ELEMENT_GROUP, SV_GROUP
+from processing.base.contract import ELEMENT_GROUP, SONAR_GROUP, SV_GROUP
 from processing.base.dataset import DatasetError, as_tree, group_of, source_of
 
 __all__ = ["echopype_view", "VIEW_SONAR_MODEL"]
@@ -120,7 +119,7 @@ def echopype_view(tree, settings=None, *, image_group: str | None = None) -> xr.
          "beam_direction_y": ("channel", np.zeros(n_b)),
          "beam_direction_z": ("channel", np.cos(np.radians(angles))),
          "sample_interval": per(dt), "transmit_power": per(1.0), "transmit_duration_nominal": per(tau),
-         "transmit_bandwidth": per(float(tree["Sonar"].ds["transmit_bandwidth"].values)),
+         "transmit_bandwidth": per(float(group_of(tree, SONAR_GROUP)["transmit_bandwidth"].values)),
          "sample_time_offset": per(0.0), "channel_mode": per(0.0),
          "transmit_frequency_start": ("channel", np.full(n_b, f0)),
          "transmit_frequency_stop": ("channel", np.full(n_b, f0))},

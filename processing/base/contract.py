@@ -27,7 +27,7 @@ from dataclasses import dataclass
 __all__ = ["ROOT_GROUP", "ENVIRONMENT_GROUP", "PLATFORM_GROUP", "PROVENANCE_GROUP", "SONAR_GROUP",
            "BEAM_GROUP_NAME", "ELEMENT_GROUP", "TRUTH_GROUP", "ARRIVALS_GROUP", "PROCESSING_GROUP", "DETECTIONS_GROUP",
            "COUNTS_GROUP", "SV_GROUP", "TRACKS_GROUP", "LABELS_GROUP", "PRODUCT_GROUPS", "LEGACY_ELEMENT_GROUP",
-           "LEGACY_TRUTH_GROUP", "CONVENTIONS", "CHANNEL", "KINDS", "Variable", "Attribute", "Group",
+           "LEGACY_TRUTH_GROUP", "ECHOPYPE_GROUPS", "FLAT_HOST", "FLAT_MAP_ATTR", "flat_name", "CONVENTIONS", "CHANNEL", "KINDS", "Variable", "Attribute", "Group",
            "GROUPS", "group_spec", "node_path", "markdown", "MARKDOWN_BEGIN", "MARKDOWN_END"]
 
 # ------------------------------------------------------------------ group paths
@@ -59,6 +59,28 @@ PRODUCT_GROUPS = {
     TRACKS_GROUP: "processing.tracking.tracks: tracks and track points",
     LABELS_GROUP: "processing.imaging.labels: what made each image cell (simulated data with arrivals)",
 }
+
+#: the groups echopype's EchoData knows (its convention table, echodata/convention/1.0.yml): its
+#: repr names every group of a file by that table (any other group: ``KeyError``), so a file
+#: abacus writes holds no other group. The others — the /Processing products and
+#: /Vendor_specific/Arrivals — lie flat in :data:`FLAT_HOST` in the file, each variable,
+#: dimension and attribute of group ``G`` named :func:`flat_name` ``(G, name)``, the way back in
+#: the attribute :data:`FLAT_MAP_ATTR` (processing/base/file_layout.py; docs/dataset.md, "In the
+#: file"). In memory they are groups.
+ECHOPYPE_GROUPS = ("/", "/Environment", "/Platform", "/Platform/NMEA", "/Provenance", "/Sonar",
+                   *(f"/Sonar/Beam_group{i}" for i in range(1, 5)), "/Vendor_specific")
+#: where the other groups lie in the file: SONAR-netCDF4 1.0 leaves vendor content to this group
+FLAT_HOST = TRUTH_GROUP
+#: the attribute of :data:`FLAT_HOST` listing each flattened group's variables, coordinates,
+#: dimensions and attributes (JSON)
+FLAT_MAP_ATTR = "abacus_flat_groups_json"
+
+
+def flat_name(group: str, name: str) -> str:
+    """The name in the file of variable, dimension or attribute ``name`` of a group that lies flat
+    in :data:`FLAT_HOST`: the group path with dots, then the name (``Processing.Sv.Sv``)."""
+    return f"{group.strip('/').replace('/', '.')}.{name}"
+
 
 #: the layout abacus wrote before SONAR-netCDF4 1.0 (read by `abacus convert`)
 LEGACY_ELEMENT_GROUP = "Simulation/Element_group1"
@@ -265,10 +287,6 @@ _PLATFORM = Group(f"/{PLATFORM_GROUP}", "where the sonar is", (
 ))
 
 _PROVENANCE = Group(f"/{PROVENANCE_GROUP}", "what made the data (simulated data)", (
-    _v("stage_seconds", "stage", "s", "f", "wall time of each stage that ran",
-       long_name="wall time per stage"),
-    _v("stage_calls", "stage", "1", "i", "times each stage was entered"),
-    _c("stage", "stage", None, "U", "the stages that ran"),
     _v("source_filenames", "filenames", None, "U",
        "the file the data came from (the scene file, or the recording converted), as echopype's "
        "Provenance holds it (its combine_echodata reads it)"),
@@ -280,6 +298,11 @@ _PROVENANCE = Group(f"/{PROVENANCE_GROUP}", "what made the data (simulated data)
     Attribute("seed", "the seed of every draw"),
     Attribute("versions", "versions of everything that shapes the numbers (JSON)"),
     Attribute("stages_run", "the stages that ran, comma-separated"),
+    Attribute("stage_seconds_json", "wall time of each stage that ran, s (JSON {stage: seconds}): an "
+              "attribute, not a variable, because two runs' timings differ by nature and echopype's "
+              "combine_echodata refuses differing variables (it keeps every file's attributes in its "
+              "Provenance)"),
+    Attribute("stage_calls_json", "times each stage was entered (JSON {stage: calls})"),
     Attribute("rays_cast_json", "rays cast per purpose (JSON)"),
     Attribute("command", "the command line"),
     Attribute("conversion_software_name", "what wrote the file (abacus), as echopype's Provenance says it"),
@@ -392,46 +415,49 @@ _BEAM_GROUP = Group(f"/{ELEMENT_GROUP}", "the per-element samples: one channel, 
 
 _FRAME_SONAR = (("frame", "sonar"),)
 _FRAME_WORLD = (("frame", "world"),)
-_TRUTH = Group(f"/{TRUTH_GROUP}", "abacus' ground truth: every target of every ping, one row each "
-               "(simulated data)", (
-    _v("target_ping_index", "target", None, "i", "the ping of each row"),
-    *(_v(f"target_{a}", "target", "m", "f", "position in the sonar frame", attrs=_FRAME_SONAR)
+_TRUTH = Group(f"/{TRUTH_GROUP}", "abacus' ground truth: every target of every ping, one row each, "
+               "along `ping_time` (simulated data)", (
+    _v("target_ping_index", "ping_time", None, "i", "the ping of each row"),
+    *(_v(f"target_{a}", "ping_time", "m", "f", "position in the sonar frame", attrs=_FRAME_SONAR)
       for a in "xyz"),
-    _v("target_world_x", "target", "m", "f", "position in the world frame", attrs=_FRAME_WORLD),
-    _v("target_world_y", "target", "m", "f", "position in the world frame", attrs=_FRAME_WORLD),
-    _v("target_world_z", "target", "m", "f", "position in the world frame",
+    _v("target_world_x", "ping_time", "m", "f", "position in the world frame", attrs=_FRAME_WORLD),
+    _v("target_world_y", "ping_time", "m", "f", "position in the world frame", attrs=_FRAME_WORLD),
+    _v("target_world_z", "ping_time", "m", "f", "position in the world frame",
        attrs=(("frame", "world (depth)"),)),
-    _v("target_range", "target", "m", "f", "range, azimuth, elevation in the sonar frame"),
-    _v("target_azimuth", "target", "rad", "f", "range, azimuth, elevation in the sonar frame"),
-    _v("target_elevation", "target", "rad", "f", "range, azimuth, elevation in the sonar frame"),
-    _v("target_backscatter_amplitude", "target", "m", "f", "ρ", long_name="rho = sqrt(sigma_bs)"),
-    _v("target_ts", "target", "dB re 1 m^2", "f", "TS (−inf where ρ = 0)", long_name="-inf where rho = 0",
+    _v("target_range", "ping_time", "m", "f", "range, azimuth, elevation in the sonar frame"),
+    _v("target_azimuth", "ping_time", "rad", "f", "range, azimuth, elevation in the sonar frame"),
+    _v("target_elevation", "ping_time", "rad", "f", "range, azimuth, elevation in the sonar frame"),
+    _v("target_backscatter_amplitude", "ping_time", "m", "f", "ρ", long_name="rho = sqrt(sigma_bs)"),
+    _v("target_ts", "ping_time", "dB re 1 m^2", "f", "TS (−inf where ρ = 0)", long_name="-inf where rho = 0",
        attrs=(("nan_means", "-inf: rho = 0 (no echo)"),)),
-    _v("target_phase", "target", "rad", "f", "extra phase"),
-    _v("target_group", "target", None, "i", "population (−1 = explicit point)",
+    _v("target_phase", "ping_time", "rad", "f", "extra phase"),
+    _v("target_group", "ping_time", None, "i", "population (−1 = explicit point)",
        long_name="-1 explicit point, else population index"),
-    _v("target_id", "target", None, "i",
+    _v("target_id", "ping_time", None, "i",
        "identity, persistent across pings for points and populations with `redraw: false`: point "
        "i is i, target k of population j is (j + 1)·10⁶ + k",
        long_name="identity: point i is i, fish k of population j is (j + 1) x 1e6 + k; "
                  "persistent across pings for points and populations with redraw: false"),
-    _v("target_velocity_world_x", "target", "m/s", "f",
+    _v("target_velocity_world_x", "ping_time", "m/s", "f",
        "world-frame velocity at the ping (0 for targets that hold their place)", attrs=_FRAME_WORLD),
-    _v("target_velocity_world_y", "target", "m/s", "f",
+    _v("target_velocity_world_y", "ping_time", "m/s", "f",
        "world-frame velocity at the ping (0 for targets that hold their place)", attrs=_FRAME_WORLD),
-    _v("target_velocity_world_z", "target", "m/s", "f",
+    _v("target_velocity_world_z", "ping_time", "m/s", "f",
        "world-frame velocity at the ping (0 for targets that hold their place)",
        attrs=(("frame", "world (depth rate)"),)),
-    _v("target_in_counting_volume", "target", None, "i",
+    _v("target_in_counting_volume", "ping_time", None, "i",
        "1 inside the transmitter's 3 dB beam and the image's range limits"),
-    _v("target_shadowed", "target", None, "i", "1 where a mesh blocks the direct path",
+    _v("target_shadowed", "ping_time", None, "i", "1 where a mesh blocks the direct path",
        long_name="1 where a mesh blocks the direct path (no direct echo)"),
-    _v("truth_count_total", "ping_time", "1", "i", "targets per ping"),
-    _v("truth_count_in_volume", "ping_time", "1", "i", "targets per ping in the counting volume"),
-    _c("ping_time", "ping_time", None, "M", "the pings"),
+    _c("ping_time", "ping_time", None, "M",
+       "the time of each row's ping (repeated for every target of a ping): the rows' dimension is "
+       "`ping_time` so that echopype's combine_echodata appends the truth of two files as it appends "
+       "their pings (docs/interop.md); targets per ping are the rows of each `target_ping_index`"),
 ), (
     Attribute("counting_volume", "what the counting volume is"),
-    Attribute("counting_range_m", "its range limits"),
+    Attribute("counting_range_min_m", "its near range limit (scalars, not a list: echopype's "
+              "combine_echodata compares attributes one value at a time)"),
+    Attribute("counting_range_max_m", "its far range limit"),
     Attribute("counting_azimuth_halfwidth_rad", "its half-width in azimuth"),
     Attribute("counting_elevation_halfwidth_rad", "its half-width in elevation"),
     Attribute("counting_volume_m3", "its volume (13.8 m³ for the thesis)"),

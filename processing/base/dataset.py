@@ -14,7 +14,8 @@ are in one table, processing/base/contract.py, which docs/dataset.md shows)::
                                     element; element geometry and subarrays per beam; sample
                                     interval, blanking interval, transmit parameters
     /Vendor_specific                abacus' ground truth: targets per ping (simulated data only)
-    /Processing                     images, detections, counts, tracks (processing)
+    /Processing                     images, detections, counts, tracks (processing); in the
+                                    file flat in /Vendor_specific (processing/base/file_layout.py)
 
 Complex arrays are stored as ``_r``/``_i`` float32 pairs; ``range_sample`` stays in one chunk.
 This is the only module that writes NetCDF or Zarr. Writes are atomic: a temporary file (or
@@ -39,7 +40,8 @@ from processing.base.contract import (CONVENTIONS, ELEMENT_GROUP, ENVIRONMENT_GR
 __all__ = ["DatasetError", "DatasetWarning", "FORMATS", "CONVENTIONS", "ELEMENT_GROUP", "ping_indices", "TRUTH_GROUP",
            "write_tree", "write_dataset", "check_finite", "NAN_MEANS", "open_tree", "tree_pings", "source_of", "PairedSamples", "complex_of", "split_complex", "SonarRecord",
            "read_record", "beam_samples", "LEGACY_ELEMENT_GROUP", "as_tree", "group_of", "has_group",
-           "missing_variables", "echosounder_model", "SIMRAD_MODELS", "sonar_convention_version"]
+           "missing_variables", "echosounder_model", "SIMRAD_MODELS", "sonar_convention_version",
+           "stage_seconds"]
 
 FORMATS = ("netcdf", "zarr")
 
@@ -67,8 +69,10 @@ def _encoding(tree: xr.DataTree) -> dict:
     for node in tree.subtree:
         per = {}
         for name, var in node.ds.data_vars.items():
-            if "ping_time" in var.dims and var.ndim >= 2:
-                chunks = tuple(1 if d == "ping_time" else var.sizes[d] for d in var.dims)
+            # a product lying flat in /Vendor_specific has its ping_time as `<group>.ping_time`
+            per_ping = [str(d).rsplit(".", 1)[-1] == "ping_time" for d in var.dims]
+            if any(per_ping) and var.ndim >= 2:
+                chunks = tuple(1 if p else var.sizes[d] for d, p in zip(var.dims, per_ping))
                 per[name] = {"chunksizes": chunks}
         if per:
             enc[node.path] = per
@@ -135,10 +139,13 @@ def write_tree(tree: xr.DataTree, path: str | Path, *, fmt: str | None = None) -
     fmt = _format_of(path, fmt)
     if not path.parent.exists():
         raise DatasetError(f"{path}: the folder {path.parent} does not exist")
+    from processing.base.file_layout import flatten
     for node in tree.subtree:
         check_finite(node.ds, where=f"{path}: /{node.path.strip('/')}")
     if fmt == "zarr":
         require("zarr", f"writing Zarr ({path.name})")
+    # the groups echopype does not know lie flat in /Vendor_specific (open_tree restores them)
+    tree = flatten(tree)
     with staged(path) as tmp:
         if fmt == "netcdf":
             with _small_chunk_cache():
@@ -249,7 +256,8 @@ def open_tree(path: str | Path, *, max_memory_gb: float | None = None,
         check_resources(Estimate(size * (1.0 + work_factor), 0.0, [("dataset", size)],
                                  keys="the pings in the file (process it in parts)"),
                         what=f"{path}", max_memory_gb=max_memory_gb)
-        return tree.load()
+        from processing.base.file_layout import restore
+        return restore(tree.load())
     except (DatasetError, ValueError) as exc:
         if exc.__class__.__name__ == "ResourceError" or isinstance(exc, DatasetError):
             raise
@@ -484,6 +492,33 @@ def group_of(tree: xr.DataTree, group: str) -> xr.Dataset | None:
     except KeyError:
         return None
     return node.ds if isinstance(node, xr.DataTree) else None
+
+
+def stage_seconds(tree: xr.DataTree) -> dict:
+    """The wall time of each simulation stage that made the dataset, in the order they ran.
+
+    Parameters
+    ----------
+    tree : xarray.DataTree
+
+    Returns
+    -------
+    dict of str to float
+        Stage name -> seconds (s); empty without /Provenance or its timings. Read from the
+        ``stage_seconds_json`` attribute, or from the ``stage_seconds`` variable along ``stage``
+        of files written before the timings became attributes.
+    """
+    import json
+
+    from processing.base.contract import PROVENANCE_GROUP
+    prov = group_of(tree, PROVENANCE_GROUP)
+    if prov is None:
+        return {}
+    if "stage_seconds_json" in prov.attrs:
+        return {str(k): float(v) for k, v in json.loads(str(prov.attrs["stage_seconds_json"])).items()}
+    if "stage_seconds" in prov and "stage" in prov:          # the layout before
+        return {str(k): float(v) for k, v in zip(prov["stage"].values, prov["stage_seconds"].values)}
+    return {}
 
 
 def has_group(tree: xr.DataTree, group: str) -> bool:

@@ -365,6 +365,12 @@ def _truth(grp, where: str) -> xr.Dataset:
         if spec.variable(name) is None:
             continue
         values[name] = _times(var, f"{where}: /Vendor_specific/{name}") if name == "ping_time" else _array(var)
+    if "truth_count_total" in grp.variables and "ping_time" in values:
+        # written before the rows moved onto ping_time: one time per ping, rows per ping counted
+        values["ping_time"] = np.repeat(values["ping_time"], _array(grp["truth_count_total"]).astype(int))
     attrs = {k: grp.getncattr(k) for k in grp.ncattrs() if spec.attribute(k) is not None}
+    if "counting_range_m" in grp.ncattrs():                  # the layout before: one list
+        attrs["counting_range_min_m"], attrs["counting_range_max_m"] = \
+            (float(x) for x in np.ravel(grp.getncattr("counting_range_m")))
     attrs = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in attrs.items()}
     return build_group(TRUTH_GROUP, values, attrs=attrs)
