@@ -14,8 +14,8 @@ instead of dying half-way with an allocation error. The terms, in bytes:
                   the kept draws (up to 17), ≈ 800 bytes a fish;
 ``meshes``        faces x 1300 (vertices, faces, normals, the caster's planes, Embree's copy and
                   BVH, the specular search's vertex normals, blocks and their tree: the hard
-                  survey's peak grows 1.2 kB a floor facet from 10⁶ to 3·10⁶, docs/performance.md,
-                  "scaling"); the faces of a file
+                  survey's peak grows 0.9–1.2 kB a floor facet from 10⁶ to 3·10⁶ as the search
+                  changes, docs/performance.md, "scaling"); the faces of a file
                   come from its header before it is read (STL, PLY, OFF, .npy grids), else from
                   its size (:func:`acoustics.paths.meshes.mesh_file_faces`); procedural shapes
                   from their keys (a plane's ``segments``, a grid's ``size_m / resolution_m``);
