@@ -203,7 +203,8 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     colours = {"surface": "lightblue", "floor": "tan", "obstacle": "dimgray", "rigid": "gold",
                "pressure_release": "orange"}
     if rs is not None:
-        for sm in rs.meshes:
+        from acoustics.paths.tiles import is_tiled
+        for sm in (m for m in rs.meshes if not is_tiled(m.mesh)):     # a tiled floor: never whole
             v = (mount if view is not None else pose).to_world(sm.mesh.vertices)
             faces = np.hstack([np.full((len(sm.mesh.faces), 1), 3), sm.mesh.faces]).ravel()
             opacity = 0.35 if sm.role == "surface" else 0.9
@@ -278,7 +279,7 @@ def render_scene(scene, output: str | Path | None = None, *, ping: int = 0, inte
     if len(t):
         content.append(t.position_world_m)
     if rs is not None:
-        for sm in rs.meshes:      # the boundaries where the beam reaches them
+        for sm in (m for m in rs.meshes if not is_tiled(m.mesh)):   # where the beam reaches them
             v = (mount if view is not None else pose).to_world(sm.mesh.vertices)
             content.append(v[np.linalg.norm(v - origin, axis=1) <= 1.1 * r_end])
     content = np.concatenate(content)

@@ -1162,6 +1162,7 @@ def synthesis_ab():
 _SCALE_CHILD = r"""
 import json, resource, sys, time, warnings
 warnings.simplefilter("ignore")
+from acoustics.paths.tiles import is_tiled
 from acoustics.scene import scene_from_text
 from acoustics.simulation.ping import simulate_ping
 from acoustics.simulation.setup import RunCache, make_setup
@@ -1174,18 +1175,29 @@ cache = RunCache(setup)
 simulate_ping(setup, 0, cache=cache)  # warm, on the run's own cache: kernels, the floor's normals and blocks
 t_first = time.perf_counter() - t0
 log = StageLog()
+floor = cache.ray_scene.meshes[0].mesh if cache.ray_scene is not None else None
+builds0 = floor.builds if is_tiled(floor) else 0
 for p in range(1, 1 + pings):       # what simulate does per ping
     simulate_ping(setup, p, cache=cache, log=log)
 st = log.seconds
+tiles = None
+if is_tiled(floor):
+    tiles = {"n_tiles": floor.n_tiles, "builds_per_ping": (floor.builds - builds0) / pings,
+             "peak_cached_mb": floor.peak_cached_bytes / 1e6, "memory_mb": floor.memory_bytes / 1e6,
+             "tile_facets": int(floor.face_start[1])}
 print(json.dumps({"ping_s": sum(st.values()) / pings, "first_s": t_first, "stages_s": st,
-                  "pings": pings,
+                  "pings": pings, "tiles": tiles,
                   "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
 
+#: the memory setting of the tiled points of the scaling sweep (MB)
+_SCALE_TILE_MB = 2000
 
-def _scaled_scene(text, *, facets=None, fish=None):
+
+def _scaled_scene(text, *, facets=None, fish=None, tiles_mb=None):
     """The hard survey with about ``facets`` floor facets (its resolution) or ``fish`` fish
-    (the school's semi-axes grown as the cube root, so its packing stays that of 1,000)."""
+    (the school's semi-axes grown as the cube root, so its packing stays that of 1,000); with
+    ``tiles_mb`` its floor streamed in tiles (effects.floor_tiles.memory_mb)."""
     import re
     if facets is not None:
         res = float(np.sqrt(2 * 90.0 * 50.0 / facets))
@@ -1194,6 +1206,10 @@ def _scaled_scene(text, *, facets=None, fish=None):
         g = (fish / 1000.0) ** (1 / 3)
         text = text.replace("count: 1000", f"count: {int(fish)}").replace(
             "semi_axes_m: [7.0, 5.0, 3.0]", f"semi_axes_m: [{7 * g:.2f}, {5 * g:.2f}, {3 * g:.2f}]")
+    if tiles_mb is not None:
+        line = "  reverberation: {enabled: true, rays_per_square_degree: 100}\n"
+        assert line in text
+        text = text.replace(line, line + f"  floor_tiles: {{enabled: true, memory_mb: {tiles_mb}}}\n")
     return text
 
 
@@ -1210,7 +1226,7 @@ def scaling():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from acoustics.scene import scene_from_text
-    from acoustics.simulation.budget import mesh_faces
+    from acoustics.simulation.budget import estimate_scene, mesh_faces
 
     base = (ROOT / "scenes" / "hard_survey.yaml").read_text()
     tmp = Path(tempfile.mkdtemp(prefix="abacus-scale-"))
@@ -1224,40 +1240,64 @@ def scaling():
         path.write_text(text)
         sc = scene_from_text(text)
         faces = int(mesh_faces(sc.boundaries[0]))          # the floor's
+        est = estimate_scene(sc, pings=1 + pings, write=False).memory_bytes / 1e6
         try:
             out = subprocess.run([sys.executable, str(script), str(path), str(pings)], env=env,
                                  capture_output=True, text=True, timeout=limit_s, cwd=tmp)
         except subprocess.TimeoutExpired:
-            return faces, None
+            return faces, None, est
         if out.returncode:
-            return faces, {"error": out.stderr.strip().splitlines()[-1][:200]}
-        return faces, json.loads(out.stdout.strip().splitlines()[-1])
+            return faces, {"error": out.stderr.strip().splitlines()[-1][:200]}, est
+        return faces, json.loads(out.stdout.strip().splitlines()[-1]), est
 
-    rows, by_facets, by_fish = [], [], []
+    rows, by_facets, tiled, by_fish = [], [], [], []
     for n in (1e3, 1e4, 1e5, 1e6, 3e6):
-        faces, r = run(_scaled_scene(base, facets=n), f"facets_{int(n)}", 3 if n < 2e6 else 1, 900)
+        faces, r, est = run(_scaled_scene(base, facets=n), f"facets_{int(n)}", 3 if n < 2e6 else 1, 900)
         by_facets.append((faces, r))
-        rows.append(["1,000", f"{faces:,}", *_scale_cells(r)])
+        rows.append(["1,000", f"{faces:,}", "whole", *_scale_cells(r), f"{est:.0f}"])
+    low = []      # 10⁷ facets under half the setting: the peak follows the setting
+    for n, mb in ((1e6, _SCALE_TILE_MB), (1e7, _SCALE_TILE_MB), (1e7, _SCALE_TILE_MB // 2)):
+        faces, r, est = run(_scaled_scene(base, facets=n, tiles_mb=mb), f"tiled_{int(n)}_{mb}",
+                            3 if n < 2e6 else 1, 1500)
+        (tiled if mb == _SCALE_TILE_MB else low).append((faces, r))
+        rows.append(["1,000", f"{faces:,}", f"tiles, {mb:,} MB", *_scale_cells(r), f"{est:.0f}"])
     for n in (10, 100, 1000, 10000):
-        faces, r = run(_scaled_scene(base, fish=n), f"fish_{n}", 3, 600)
+        faces, r, est = run(_scaled_scene(base, fish=n), f"fish_{n}", 3, 600)
         by_fish.append((n, r))
-        rows.append([f"{n:,}", f"{faces:,}", *_scale_cells(r)])
+        rows.append([f"{n:,}", f"{faces:,}", "whole", *_scale_cells(r), f"{est:.0f}"])
     load1 = os.getloadavg()
-    fig, ax = plt.subplots(1, 2, figsize=(10, 4))
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.4))
     for a, data, xl in ((ax[0], by_facets, "floor facets (the sea: 8,640 more)"), (ax[1], by_fish, "fish")):
         ok = [(x, r) for x, r in data if r and "ping_s" in r]
         if not ok:
             continue
         x = [v for v, _ in ok]
-        a.loglog(x, [r["ping_s"] * 1e3 for _, r in ok], "o-", label="time per ping (ms)")
-        a.loglog(x, [r["peak_rss_mb"] for _, r in ok], "s--", label="peak RSS (MB)")
+        a.loglog(x, [r["ping_s"] * 1e3 for _, r in ok], "o-", color="C0", label="time per ping (ms)")
+        a.loglog(x, [r["peak_rss_mb"] for _, r in ok], "s--", color="C1", label="peak RSS (MB)")
         a.axhline(90, color="grey", lw=0.8, ls=":")
         a.text(x[0], 95, "90 ms: real time at 68 m", color="grey", fontsize=8)
         a.set_xlabel(xl)
         a.grid(True, which="both", alpha=0.3)
-        a.legend()
+    ok = [(x, r) for x, r in tiled if r and "ping_s" in r]
+    if ok:
+        x = [v for v, _ in ok]
+        ax[0].loglog(x, [r["ping_s"] * 1e3 for _, r in ok], "o:", mfc="none", color="C0",
+                     label="time per ping, floor in tiles (ms)")
+        ax[0].loglog(x, [r["peak_rss_mb"] for _, r in ok], "s:", mfc="none", color="C1",
+                     label=f"peak RSS, floor in tiles (MB)")
+        ax[0].axhline(_SCALE_TILE_MB, color="C1", lw=0.8, ls="-.")
+        ax[0].text(1.2e3, _SCALE_TILE_MB * 1.1, f"tiles' memory setting {_SCALE_TILE_MB:,} MB",
+                   color="C1", fontsize=8)
+    ok = [(x, r) for x, r in low if r and "ping_s" in r]
+    if ok:
+        ax[0].loglog([x for x, _ in ok], [r["ping_s"] * 1e3 for _, r in ok], "^", mfc="none",
+                     color="C0", label=f"time per ping, tiles at {_SCALE_TILE_MB // 2:,} MB (ms)")
+        ax[0].loglog([x for x, _ in ok], [r["peak_rss_mb"] for _, r in ok], "v", mfc="none",
+                     color="C1", label=f"peak RSS, tiles at {_SCALE_TILE_MB // 2:,} MB (MB)")
+    for a in ax:
+        a.legend(fontsize=8, loc="upper left")
     ax[0].set_title("hard survey, 1,000 fish")
-    ax[1].set_title("hard survey, the 144k-facet floor")
+    ax[1].set_title("hard survey, the 145k-facet floor")
     fig.suptitle("scenes/hard_survey.yaml: cost against facets and fish (2 shared cores)")
     fig.tight_layout()
     out = ROOT / "docs" / "figures" / "hard_survey_scaling.png"
@@ -1265,34 +1305,63 @@ def scaling():
     plt.close(fig)
     import shutil
     shutil.rmtree(tmp, ignore_errors=True)
+    big = next((r for f, r in tiled if f > 5e6 and r and "ping_s" in r), None)
+    # a whole floor's memory a facet: the slope of peak RSS between its two largest points
+    (f1, r1), (f2, r2) = by_facets[-2], by_facets[-1]
+    kb = ((r2["peak_rss_mb"] - r1["peak_rss_mb"]) * 1e3 / (f2 - f1)
+          if r1 and r2 and "peak_rss_mb" in r1 and "peak_rss_mb" in r2 else float("nan"))
+    if big is not None:
+        tl = big["tiles"]
+        half = next((r for f, r in low if r and "ping_s" in r), None)
+        if half is not None:
+            big = dict(big, half=(f"; at half the setting ({_SCALE_TILE_MB // 2:,} MB) the process "
+                                  f"peaked at {half['peak_rss_mb']:,.0f} MB and a ping took "
+                                  f"{half['ping_s']:.0f} s, {half['tiles']['builds_per_ping']:.0f} "
+                                  f"tiles built again"))
+        note = (f"**10⁷ facets within a stated memory.** With `effects.floor_tiles: {{enabled: true, "
+                f"memory_mb: {_SCALE_TILE_MB}}}` the {tiled[-1][0]:,}-facet floor is never held whole: "
+                f"{tl['n_tiles']} tiles of {tl['tile_facets']:,} facets (`tile_vertices` 513) are "
+                f"built as the rays and the specular search reach them and evicted least recently "
+                f"used; the built tiles (with their specular search blocks) peaked at "
+                f"{tl['peak_cached_mb']:.0f} MB by their account (the setting: {tl['memory_mb']:.0f} "
+                f"MB), {tl['builds_per_ping']:.0f} tiles were built again per ping, and the process "
+                f"peaked at {big['peak_rss_mb']:,.0f} MB (the floor, the sea, the school, the "
+                f"synthesis and the runtime; the budget's estimate is in the table) against "
+                f"≈ {kb * tiled[-1][0] / 1e6:.0f} GB for this floor held whole ({kb:.2f} kB a "
+                f"facet, the whole-floor rows){big.get('half', '')}. ")
+    else:
+        note = "**The 10⁷-facet tiled point did not finish (the table says why).** "
     return ("## The hard survey at scale: facets and fish\n\n"
             "`scenes/hard_survey.yaml` with its floor meshed finer or coarser (90 x 50 m; the sea "
             "as in the scene) and with its school grown or shrunk (its semi-axes as the cube root "
-            "of the count, so the fish stay as close together). Each point is a fresh process: one "
+            "of the count, so the fish stay as close together). *floor*: built whole, or "
+            f"streamed in tiles with `effects.floor_tiles.memory_mb: {_SCALE_TILE_MB}` "
+            "(acoustics/paths/tiles.py; the tiled floor is a different draw of the same rough "
+            "surface: a tileable generator). Each point is a fresh process: one "
             "ping untimed on the run's setup (compiling, caches, the floor's normals and search "
-            "blocks), then 3 pings timed on the same setup (1 at 3·10⁶ facets), as `simulate` "
-            "runs them; *ms per ping*: the ping's stages; *first ping*: the setup and the warm "
-            "ping; *peak RSS*: the process's. Load "
+            "blocks), then 3 pings timed on the same setup (1 at 3·10⁶ facets and more), as "
+            "`simulate` runs them; *ms per ping*: the ping's stages; *first ping*: the setup and "
+            "the warm ping; *peak RSS*: the process's; *estimate*: the budget's "
+            "(acoustics/simulation/budget.py) before the run, without the writer. Load "
             f"average {load0[0]:.1f} at the start, {load1[0]:.1f} at the end (2 cores shared with "
             "other work: absolute times are under load).\n\n"
-            + table(["fish", "floor facets", "ms per ping", "multipath (ms)", "echoes (ms)",
-                     "first ping (s)", "peak RSS (MB)"], rows)
+            + table(["fish", "floor facets", "floor", "ms per ping", "multipath (ms)", "echoes (ms)",
+                     "first ping (s)", "peak RSS (MB)", "estimate (MB)"], rows)
             + "\n\n![time per ping and peak memory against facets and fish]"
               "(figures/hard_survey_scaling.png)\n\n"
-              "**Not done: a 10⁷-facet floor with memory bounded by a setting.** The floor is one "
-              "mesh, held whole by the Embree caster and by the specular search; no tiles are "
-              "streamed through them, so peak memory grows with the facets (the table: about "
-              "1.5 kB a facet at 10⁶, with the search's temporaries). 10⁷ facets were not run: the "
-              "scene schema refuses a `rough_floor` finer than 4 million vertices (8 million "
-              "facets), and at this rate 10⁷ facets would want ~15 GB on a 23 GB machine shared "
-              "with other work. The largest point run is 3·10⁶ facets. Time grows with the "
-              "specular search (targets x facets, culled) more than with the rays; the fish "
-              "cost the search linearly once they outnumber the fixed costs.")
+            + note
+            + f"A whole floor's memory grows with its facets (≈ {kb:.2f} kB a facet: the mesh, the "
+              "caster's planes, Embree's BVH, the specular search's normals and blocks); a tiled "
+              "floor's is bounded by the setting (a built tile ≈ 450 B a facet with its search "
+              "blocks, measured), whatever the floor's size. Time grows with the specular search "
+              "(targets x facets, culled) more than with the rays; in tiles it grows too with "
+              "the tiles built again each ping when the setting holds fewer than the fan reaches. "
+              "The fish cost the search linearly once they outnumber the fixed costs.")
 
 
 def _scale_cells(r):
     if r is None:
-        return ["did not finish in its time limit (10 min; 15 at 3·10⁶ facets)", "", "", "", ""]
+        return ["did not finish in its time limit (10 min; 15 at 3·10⁶ facets, 25 tiled)", "", "", "", ""]
     if "error" in r:
         return [r["error"], "", "", "", ""]
     st, n = r["stages_s"], r["pings"]

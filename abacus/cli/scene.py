@@ -37,7 +37,7 @@ def command(args) -> int:
             from acoustics.simulation.setup import resolve_mesh_sources
             from acoustics.sonar.build import build_sonar
             built = scene_meshes(resolve_mesh_sources(scene), build_sonar(scene).pose)
-            meshes = f", {len(built)} mesh(es), {sum(len(m.mesh.faces) for m in built)} faces"
+            meshes = f", {len(built)} mesh(es), {sum(m.n_faces for m in built)} faces"
         motion = ""
         if scene.sonar.motion is not None and scene.sonar.motion.kind == "file":
             from acoustics.sonar.platform import read_motion_csv

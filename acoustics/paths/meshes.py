@@ -83,8 +83,18 @@ class SceneMesh:
                          self.placement, n, float(time_s))
 
     @property
+    def n_faces(self) -> int:
+        """Its facets (a tiled floor's without building it)."""
+        from acoustics.paths.tiles import is_tiled
+        return int(self.mesh.n_faces) if is_tiled(self.mesh) else int(len(self.mesh.faces))
+
+    @property
     def plane(self):
-        """(unit normal (3,), offset d) with n·x = d if the mesh is flat, else None."""
+        """(unit normal (3,), offset d) with n·x = d if the mesh is flat, else None (a tiled
+        floor: a rough floor, never flat)."""
+        from acoustics.paths.tiles import is_tiled
+        if is_tiled(self.mesh):
+            return None
         m = self.mesh
         n = m.face_normals
         if len(n) == 0:
@@ -114,8 +124,9 @@ def _rough_floor(spec, seed: int):
     nx = int(np.ceil(spec.size_m[0] / spec.resolution_m)) + 1
     ny = int(np.ceil(spec.size_m[1] / spec.resolution_m)) + 1
     if nx * ny > 4_000_000:
-        raise MeshError(f"rough_floor of {nx} x {ny} vertices is too fine (limit 4 million): raise "
-                        f"resolution_m or shrink size_m")
+        raise MeshError(f"rough_floor of {nx} x {ny} vertices is too fine to build whole (limit 4 "
+                        f"million): raise resolution_m, shrink size_m, or stream it in tiles "
+                        f"(effects.floor_tiles.memory_mb)")
     x = spec.center_m[0] + np.linspace(-spec.size_m[0] / 2, spec.size_m[0] / 2, nx)
     y = spec.center_m[1] + np.linspace(-spec.size_m[1] / 2, spec.size_m[1] / 2, ny)
     h = np.zeros((ny, nx))
@@ -496,6 +507,9 @@ class MeshSources:
         The scene file, for messages.
     seed : int
         The scene's seed (rough floors, sea surfaces).
+    floor_tiles : FloorTilesSpec, optional
+        ``effects.floor_tiles``: rough floors streamed in tiles when it is enabled
+        (acoustics/paths/tiles.py); None: built whole.
     """
 
     boundaries: tuple = ()
@@ -503,6 +517,7 @@ class MeshSources:
     folder: Path | None = None
     source: str = "<scene>"
     seed: int = 0
+    floor_tiles: object = None
 
     def resolve_path(self, path) -> Path:
         """A path written in the scene, relative to the scene file's folder."""
@@ -526,16 +541,29 @@ def scene_meshes(sources: MeshSources, pose: Pose) -> list[SceneMesh]:
     items += [("target", f"targets.meshes[{i}]", t, t.boundary)
               for i, t in enumerate(sources.targets)]
     src = sources.source
+    tiles = sources.floor_tiles
     for kind, key, spec, role in items:
+        mat = np.eye(4)
+        if spec.frame == "world":
+            mat[:3, :3] = pose.rotation.T
+            mat[:3, 3] = -pose.rotation.T @ pose.position_m
+        if tiles is not None and tiles.enabled and spec.mesh.shape == "rough_floor":
+            # streamed in tiles (acoustics/paths/tiles.py), never built whole
+            from acoustics.paths.tiles import FloorTiles, TileMemoryError
+            try:
+                m = FloorTiles(spec.mesh, sources.seed, mat @ _transform_matrix(spec.mesh.transform),
+                               memory_mb=tiles.memory_mb, tile_vertices=tiles.tile_vertices,
+                               key=f"{key}.mesh")
+            except TileMemoryError as exc:
+                raise SceneError(f"{src}: {exc}") from None
+            out.append(SceneMesh(spec.name, kind, role, m, spec, key))
+            continue
         try:
             m = build_mesh(spec.mesh, name=spec.name, key=f"{key}.mesh",
                            resolve=sources.resolve_path, seed=sources.seed)
         except MeshError as exc:
             raise SceneError(f"{src}: {exc}") from None
-        mat = np.eye(4)
         if spec.frame == "world":
-            mat[:3, :3] = pose.rotation.T
-            mat[:3, 3] = -pose.rotation.T @ pose.position_m
             m.apply_transform(mat)
         sm = SceneMesh(spec.name, kind, role, m, spec, key)
         if spec.mesh.shape in ("wind_sea", "swell"):

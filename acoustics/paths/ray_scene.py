@@ -36,6 +36,7 @@ each new view.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -457,11 +458,13 @@ class RayScene:
         window = None
         if window_extent is not None and not before:   # a fan: only blocks it reaches, seen from start
             window = (np.asarray(start, float), np.eye(3) if view is None else view.rotation, window_extent)
-        sp = specular_points(sm.mesh.vertices, sm.mesh.faces, self._normals(ci),
-                             np.broadcast_to(s_img, (n, 3)), e_img,
-                             newton_iterations=spec.newton_iterations,
-                             focusing_limit_db=spec.focusing_limit_db, height_field=exact,
-                             window=window)
+        from acoustics.paths.tiles import is_tiled
+        search = sm.mesh.specular_points if is_tiled(sm.mesh) else partial(   # a tile at a time
+            specular_points, sm.mesh.vertices, sm.mesh.faces, self._normals(ci))
+        sp = search(np.broadcast_to(s_img, (n, 3)), e_img,
+                    newton_iterations=spec.newton_iterations,
+                    focusing_limit_db=spec.focusing_limit_db, height_field=exact,
+                    window=window)
         empty = (np.zeros(0, int), np.zeros((0, 3)), np.zeros(0, complex), np.zeros(0),
                  np.zeros(0, int))
         if not len(sp):

@@ -94,7 +94,10 @@ class Hits:
     point : ndarray, shape (n, 3)
         Hit points (m); NaN-free: the ray's origin for a miss.
     face_normals : ndarray, shape (F, 3)
-        The caster's unit face normals (shared, not copied).
+        The caster's unit face normals of its whole meshes (shared, not copied).
+    row_normals : ndarray, shape (n, 3), optional
+        Each row's face normal, given when a tiled floor was hit (its facets have no row in
+        ``face_normals``).
     """
 
     face: np.ndarray
@@ -102,6 +105,7 @@ class Hits:
     distance: np.ndarray
     point: np.ndarray
     face_normals: np.ndarray
+    row_normals: np.ndarray | None = None
 
     @property
     def hit(self) -> np.ndarray:
@@ -110,6 +114,8 @@ class Hits:
     @property
     def normal(self) -> np.ndarray:
         """Unit normal (n, 3) of the face hit, as stored in the mesh; zeros for a miss."""
+        if self.row_normals is not None:
+            return np.where(self.hit[:, None], self.row_normals, 0.0)
         return np.where(self.hit[:, None], self.face_normals[np.maximum(self.face, 0)], 0.0)
 
 
@@ -137,7 +143,11 @@ class RayCaster:
         verts, faces, owner, normal, v0 = [], [], [], [], []
         offset = 0
         self._per_mesh = {}
+        # a floor in tiles (acoustics/paths/tiles.py.FloorTiles) says so
+        tiled = np.array([bool(getattr(sm.mesh, "tiled", False)) for sm in self.meshes])
         for i, sm in enumerate(self.meshes):
+            if tiled[i]:
+                continue
             v = np.asarray(sm.mesh.vertices, float)
             f = np.asarray(sm.mesh.faces, np.int64)
             verts.append(v)
@@ -155,16 +165,28 @@ class RayCaster:
             self._per_mesh[id(sm)] = kept
             normal.append(kept[1])
             v0.append(kept[2])
-        self.vertices = np.concatenate(verts)
-        self.faces = np.concatenate(faces)
-        self.face_mesh = np.concatenate(owner)
-        self.face_normal = np.concatenate(normal)
-        self.face_v0 = np.concatenate(v0)
+        def cat(parts, shape, dtype=float):
+            return np.concatenate(parts) if parts else np.zeros(shape, dtype)
+
+        self.vertices = cat(verts, (0, 3))
+        self.faces = cat(faces, (0, 3), np.int64)
+        self.face_mesh = cat(owner, (0,), np.int64)
+        self.face_normal = cat(normal, (0, 3))
+        self.face_v0 = cat(v0, (0, 3))
+        # tiled floors (acoustics/paths/tiles.py): their facets are numbered after the whole
+        # meshes', (mesh index, tiles, first facet) each; never held whole
+        self._tiled = []
+        start = self.faces.shape[0]
+        for i in np.flatnonzero(tiled):
+            self._tiled.append((int(i), self.meshes[i].mesh, start))
+            start += self.meshes[i].mesh.n_faces
         # rows n, n·v0: one cache line per hit when refining
         self.face_plane = np.empty((self.faces.shape[0], 4))
         self.face_plane[:, :3] = self.face_normal
         self.face_plane[:, 3] = np.einsum("ij,ij->i", self.face_normal, self.face_v0)
-        self.extent_m = float(np.max(np.abs(self.vertices))) if len(self.vertices) else 1.0
+        extents = [float(np.max(np.abs(self.vertices)))] if len(self.vertices) else []
+        extents += [tiles.extent_m for _, tiles, _ in self._tiled]
+        self.extent_m = max(extents) if extents else 1.0
         self.eps_m = max(64 * np.spacing(np.float32(max(self.extent_m, 1.0))).item(), 1e-7)
         self.threads = threads or os.cpu_count() or 1
         # one Embree scene for the meshes that never move, one for those that do (a sea): a
@@ -172,7 +194,7 @@ class RayCaster:
         moving = np.array([bool(getattr(sm, "moving", False)) for sm in self.meshes])
         self._parts = []
         for flag in (False, True):
-            idx = np.flatnonzero(moving == flag)
+            idx = np.flatnonzero((moving == flag) & ~tiled)
             if idx.size == 0:
                 continue
             reused = None
@@ -182,6 +204,14 @@ class RayCaster:
                                self._build_part(idx, robust, still=not flag))
         self.rays_cast: dict[str, int] = {}
         self._buffers = None
+
+    def first_face(self, mesh_index: int) -> int:
+        """The caster's number of a mesh's first facet (facet k of the mesh is this + k)."""
+        for i, _, start in self._tiled:
+            if i == mesh_index:
+                return start
+        own = np.flatnonzero(self.face_mesh == mesh_index)
+        return int(own[0]) if own.size else 0
 
     def _build_part(self, mesh_idx, robust, still):
         """(Embree scene, global face index of each of its faces, its meshes, still) for the
@@ -213,6 +243,8 @@ class RayCaster:
     def _ids(self, o32, d32, dists, query):
         """Embree's answer over every part: the global face hit (INTERSECT; the nearest over
         the parts, by Embree's float32 distance) or 0 where blocked (OCCLUDED, as Embree)."""
+        if not self._parts:
+            return np.full(o32.shape[0], -1, np.int32)
         if len(self._parts) == 1:
             scene, faces, _, _ = self._parts[0]
             if query == "OCCLUDED":
@@ -317,7 +349,41 @@ class RayCaster:
 
         if not all(self._map(job, n)):
             raise ValueError("rays need finite origins and non-zero finite directions")
-        return Hits(face, mesh, t, point, self.face_normal)
+        if not self._tiled:
+            return Hits(face, mesh, t, point, self.face_normal)
+        row_normal = np.zeros((n, 3))
+        if self.face_normal.shape[0]:
+            row_normal[face >= 0] = self.face_normal[face[face >= 0]]
+        reach = limit + self.eps_m if limit.shape[0] > 1 else np.full(n, limit[0] + self.eps_m)
+        self._tiled_first_hit(o, d, eps, o32, d32, reach, face, mesh, t, point, row_normal)
+        return Hits(face, mesh, t, point, self.face_normal, row_normal)
+
+    def _tiled_first_hit(self, o, d, eps, o32, d32, reach, face, mesh, t, point, row_normal):
+        """The nearest hit on each tiled floor, a tile at a time (the tiles each ray's reach
+        crosses), kept where nearer than the hit so far (float64 distances)."""
+        for mi, tiles, start in self._tiled:
+            for k, rows in tiles.rays_per_tile(o32, d32, reach, 16 * self.eps_m):
+                tile = tiles.tile(k)
+                dists = np.ascontiguousarray(np.minimum(reach[rows] - eps, 3e38) * (1 + 1e-6) + self.eps_m,
+                                             np.float32)
+                ids = np.asarray(tile.embree.run(o32[rows], d32[rows], dists=dists, query="INTERSECT"),
+                                 np.int32)
+                m = rows.size
+                f_k, m_k, t_k, p_k = (np.empty(m, np.int32), np.empty(m, np.int32), np.empty(m),
+                                      np.empty((m, 3)))
+                _refine(ids, np.ascontiguousarray(o[rows]), np.ascontiguousarray(d[rows]),
+                        tile.face_plane, np.full(tile.faces.shape[0], mi, np.int32),
+                        np.ascontiguousarray(reach[rows]), f_k, m_k, t_k, p_k)
+                g_k = start + tile.face_start + f_k
+                # a tie (a ray through two tiles' shared edge) to the lower facet number: the
+                # same hit in any order of the tiles
+                near = (f_k >= 0) & ((t_k < t[rows]) | ((t_k == t[rows]) & (g_k < face[rows])))
+                r = rows[near]
+                face[r] = g_k[near]
+                mesh[r] = mi
+                t[r] = t_k[near]
+                point[r] = p_k[near]
+                row_normal[r] = tile.face_plane[f_k[near], :3]
 
     def _scratch(self, n):
         """float32 ray buffers for Embree, kept between batches (fresh pages cost as much as the
@@ -359,9 +425,17 @@ class RayCaster:
         start = a[ok] + (d * self.eps_m if start_on_surface else 0.0)
         reach = length[ok] - (self.eps_m if start_on_surface else 0.0) - (self.eps_m if end_on_surface else 0.0)
         self._count(purpose, int(ok.sum()))
-        res = self._run(np.ascontiguousarray(start, np.float32), np.ascontiguousarray(d, np.float32),
-                        np.ascontiguousarray(np.maximum(reach, 0.0), np.float32), "OCCLUDED")
-        out[ok] = np.asarray(res) == 0
+        s32, d32 = np.ascontiguousarray(start, np.float32), np.ascontiguousarray(d, np.float32)
+        r32 = np.ascontiguousarray(np.maximum(reach, 0.0), np.float32)
+        blocked = np.asarray(self._run(s32, d32, r32, "OCCLUDED")) == 0 if self._parts else \
+            np.zeros(s32.shape[0], bool)
+        for _, tiles, _ in self._tiled:
+            for k, rows in tiles.rays_per_tile(s32, d32, r32, 16 * self.eps_m):
+                rows = rows[~blocked[rows]]
+                if rows.size:
+                    res = tiles.tile(k).embree.run(s32[rows], d32[rows], dists=r32[rows], query="OCCLUDED")
+                    blocked[rows] |= np.asarray(res) == 0
+        out[ok] = blocked
         return out
 
     @property

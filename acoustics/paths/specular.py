@@ -323,7 +323,7 @@ def _inside_xy(tri_xy, xy, eps):
 def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenumber=None,
                     newton_iterations: int = 8, focusing_limit_db: float = 20.0,
                     search_tolerance: float = 0.1, height_field=None,
-                    cull: bool = True, window=None) -> SpecularPoints:
+                    cull: bool = True, window=None, blocks=None) -> SpecularPoints:
     """Every one-bounce specular path off a mesh for each source–receiver pair.
 
     Parameters
@@ -360,6 +360,10 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
         its own frame, and the rigid placement of that frame in the mesh's. Bounce points are
         then refined, and their levels taken, on it (the mesh only finds them and, with its
         facets, decides visibility): exact at any mesh resolution.
+    blocks : tuple, optional
+        The mesh's :func:`acoustics.paths.specular_search.search_blocks` (blocks, unit
+        normals), kept by the caller (a floor's tiles keep theirs, acoustics/paths/tiles.py);
+        default: made here and cached for the last meshes searched.
 
     Returns
     -------
@@ -384,7 +388,7 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
             rot = None                        # scaled: the mesh is the best we have
     # the tight bound holds for points refined on the mesh's smooth surface and tested
     N, pair, face, st = candidate_facets(V, F, normals, S, P, tolerance=search_tolerance,
-                                         cull=cull, window=window,
+                                         cull=cull, window=window, blocks=blocks,
                                          tight=rot is None and newton_iterations > 0)
     Sq, Pq = S[pair], P[pair]
     if rot is not None:

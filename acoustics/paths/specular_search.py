@@ -14,7 +14,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-__all__ = ["candidate_facets", "unit_rows"]
+__all__ = ["candidate_facets", "search_blocks", "unit_rows"]
 
 
 def unit_rows(x):
@@ -27,7 +27,7 @@ _unit = unit_rows
 
 
 def candidate_facets(vertices, faces, normals, sources_m, receivers_m, *, tolerance: float,
-                     cull: bool = True, window=None, tight: bool = True):
+                     cull: bool = True, window=None, tight: bool = True, blocks=None):
     """Candidate bounce facets of every pair.
 
     Parameters
@@ -48,6 +48,10 @@ def candidate_facets(vertices, faces, normals, sources_m, receivers_m, *, tolera
     tight : bool
         The tight block bound (candidates refined on the mesh's smooth surface and tested
         there); else the cone with a 0.1 rad margin.
+    blocks : tuple, optional
+        The mesh's :func:`search_blocks` (blocks, unit normals), kept by the caller (a floor's
+        tiles keep theirs, acoustics/paths/tiles.py); default: made here and cached for the
+        last meshes searched.
 
     Returns
     -------
@@ -70,7 +74,10 @@ def candidate_facets(vertices, faces, normals, sources_m, receivers_m, *, tolera
             if k <= cap:
                 return N, pair[:k], face[:k], st[:k]
             cap = k
-    blocks, N = _blocks_of(V, F, normals)
+    if blocks is not None:
+        blocks, N = blocks                  # the caller's, with the unit normals they were made from
+    else:
+        blocks, N = _blocks_of(V, F, normals)
     allowed = np.ones(blocks[1].size - 1, np.uint8)
     if window is not None:
         allowed = _window_blocks(blocks, window)
@@ -626,6 +633,15 @@ def _blocks_of(V, F, normals):
     _BLOCK_CACHE.insert(0, (key, (V, F, normals), blocks, N))
     del _BLOCK_CACHE[4:]
     return blocks, N
+
+
+def search_blocks(vertices, faces, normals):
+    """(blocks, unit normals): the blocks of facets (and their tree) :func:`candidate_facets`
+    culls with and the normals they were made from, for a caller that keeps them with its
+    mesh (its ``blocks`` argument)."""
+    N = np.ascontiguousarray(_unit(np.asarray(normals, float)))
+    return _blocks(np.ascontiguousarray(np.asarray(vertices, float)),
+                   np.ascontiguousarray(np.asarray(faces, np.int64)), N), N
 
 
 def _pair_groups(S, P, size: int = 16):

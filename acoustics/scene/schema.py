@@ -166,6 +166,20 @@ class ArrivalsSpec(ConfigModel):
     """Keep arrivals no more than this far (dB) below the ping's strongest; null keeps all."""
 
 
+class FloorTilesSpec(ConfigModel):
+    """A generated floor (``rough_floor``) streamed in tiles through the ray caster and the
+    specular search, the built tiles' memory bounded (acoustics/paths/tiles.py;
+    docs/scenes.md, "Large floors")."""
+
+    enabled: bool = False
+    """Stream every ``rough_floor`` in tiles (false: built whole, at most 4 million vertices)."""
+    memory_mb: PositiveReal = Field(2000.0, ge=0.01, le=1e7)
+    """Most memory (MB) the built tiles of a floor hold at once, their search blocks
+    included; the least recently used are evicted."""
+    tile_vertices: PositiveCount = Field(513, ge=3, le=8193)
+    """Vertices along a tile's side (a tile holds 2 (n − 1)² facets)."""
+
+
 class EffectsSpec(ConfigModel):
     """Fidelity settings and switches of the forward model (docs/accuracy.md)."""
 
@@ -217,6 +231,7 @@ class EffectsSpec(ConfigModel):
     roll (docs/accuracy.md, "within-ping motion")."""
     ray_threads: PositiveCount | None = None
     """Threads for ray batches (default: every core)."""
+    floor_tiles: FloorTilesSpec = FloorTilesSpec()
     arrivals: ArrivalsSpec = ArrivalsSpec()
     """Per-arrival ground truth (off: the run pays nothing for it)."""
 

@@ -62,8 +62,7 @@ def _facets(rs, view, p_tx):
     d = pts - tx_c
     hits = rs.caster.first_hit(np.broadcast_to(tx_c, pts.shape), d, purpose="arrivals")
     mesh = np.where(hits.hit, hits.mesh, -1).astype(np.int64)
-    first = np.array([int(np.flatnonzero(rs.caster.face_mesh == i)[0]) if (rs.caster.face_mesh == i).any()
-                      else 0 for i in range(len(rs.meshes))] or [0])
+    first = np.array([rs.caster.first_face(i) for i in range(len(rs.meshes))] or [0])
     face = np.where(mesh >= 0, hits.face - first[np.maximum(mesh, 0)], -1).astype(np.int64)
     return mesh, face
 

@@ -12,10 +12,17 @@ instead of dying half-way with an allocation error. The terms, in bytes:
                   Huygens directivity one complex number per scatterer and element;
 ``schools``       drawing a school (random sequential adsorption): its candidates, k-d trees and
                   the kept draws (up to 17), ≈ 800 bytes a fish;
-``meshes``        faces x 100 (vertices, faces, normals, Embree's copy); the faces of a file
+``meshes``        faces x 1300 (vertices, faces, normals, the caster's planes, Embree's copy and
+                  BVH, the specular search's vertex normals, blocks and their tree: the hard
+                  survey's peak grows 0.9–1.2 kB a floor facet from 10⁶ to 3·10⁶ as the search
+                  changes, docs/performance.md, "scaling"); the faces of a file
                   come from its header before it is read (STL, PLY, OFF, .npy grids), else from
                   its size (:func:`acoustics.paths.meshes.mesh_file_faces`); procedural shapes
                   from their keys (a plane's ``segments``, a grid's ``size_m / resolution_m``);
+``floor tiles``   a ``rough_floor`` streamed in tiles (``effects.floor_tiles.enabled``):
+                  the tiles held at once, at most the setting (or the whole floor's tiles if
+                  fewer), and building one more: its vertices with a halo, the noise the
+                  kernel reads (:func:`tiled_floor_bytes`), instead of its faces x 100;
 ``mesh files``    reading them: the bytes and what the reader makes of them (3 x a binary
                   file, 11 x a text file);
 ``motion``        a motion series: its rows (a file's: at most its size / 4, or the row cap)
@@ -33,11 +40,11 @@ import math
 
 from processing.base.resources import Driver, Estimate
 
-__all__ = ["estimate_scene", "mesh_faces", "mesh_face_key", "population_bound", "reverberation_rays",
+__all__ = ["estimate_scene", "mesh_faces", "tiled_floor_bytes", "mesh_face_key", "population_bound", "reverberation_rays",
            "motion_rows"]
 
 _SCATTERER_BYTES = 200.0
-_FACE_BYTES = 100.0
+_FACE_BYTES = 1300.0
 _SCHOOL_FISH_BYTES = 800.0
 _MOTION_ROW_BYTES = 5 * 8 * 6.0
 #: what no estimate exceeds (a count of 1e300 is "too many", not an OverflowError)
@@ -87,6 +94,22 @@ def mesh_faces(spec, resolve=None) -> float:
         return 0.0
     from acoustics.paths.meshes import mesh_file_faces
     return _finite(mesh_file_faces(resolve(file)))
+
+
+def tiled_floor_bytes(scene, spec) -> float | None:
+    """Memory (bytes) of a boundary streamed in tiles (acoustics/paths/tiles.py): the built
+    tiles, at most ``effects.floor_tiles.memory_mb``, and the temporaries of building one;
+    None for a mesh built whole (not a ``rough_floor``, or the setting unset)."""
+    tiles = scene.effects.floor_tiles
+    shape = spec.mesh
+    if not tiles.enabled or getattr(shape, "shape", "") != "rough_floor":
+        return None
+    from acoustics.paths.tiles import tile_bytes
+    t = int(tiles.tile_vertices)
+    whole = mesh_faces(spec) * tile_bytes(t) / (2.0 * (t - 1) ** 2)
+    half = math.ceil(4.0 * shape.correlation_length_m / shape.resolution_m) if shape.rms_height_m > 0 else 0
+    build = (t + 2) ** 2 * 3 * 8 * 4 + (t + 2 * half) ** 2 * 8 * 3
+    return _finite(min(float(tiles.memory_mb) * 1e6, whole) + build)
 
 
 def mesh_face_key(spec) -> str:
@@ -185,7 +208,8 @@ def estimate_scene(scene, *, pings: int | None = None, write: bool = True,
     mesh_specs = [(f"boundaries[{i}]", b) for i, b in enumerate(scene.boundaries)]
     mesh_specs += [(f"targets.meshes[{i}]", t) for i, t in enumerate(scene.targets.meshes)]
     per_mesh = [mesh_faces(spec, resolve) for _, spec in mesh_specs]
-    faces = sum(per_mesh)
+    tiled = [tiled_floor_bytes(scene, spec) for _, spec in mesh_specs]
+    faces = sum(n for n, t in zip(per_mesh, tiled) if t is None)
     mesh_target_faces = sum(n for (key, _), n in zip(mesh_specs, per_mesh) if key.startswith("targets"))
     # legs per target: direct and every sequence of up to K bounces among B boundaries, no
     # boundary twice in a row (Σ B (B − 1)^(k−1)); a path is a pair of legs (an estimate:
@@ -199,12 +223,14 @@ def estimate_scene(scene, *, pings: int | None = None, write: bool = True,
     schools = sum(n for n, p in zip(per_pop, scene.targets.populations)
                   if isinstance(p, SchoolPopulation)) * _SCHOOL_FISH_BYTES
     meshes = faces * _FACE_BYTES + rays * 64.0
+    floor_tiles = sum(t for t in tiled if t is not None)
     file_bytes = [_file_bytes(spec, resolve) for _, spec in mesh_specs]
     rows, motion_file = motion_rows(scene)
     motion = rows * _MOTION_ROW_BYTES + 3.0 * motion_file
     terms = [("samples", samples), ("synthesis per ping", synthesis), ("scatterers per ping", scatterers),
              ("meshes and rays", meshes), ("runtime", _RUNTIME_BYTES)]
-    for name, b in (("schools", schools), ("mesh files", sum(file_bytes)), ("motion", motion)):
+    for name, b in (("schools", schools), ("floor tiles", floor_tiles), ("mesh files", sum(file_bytes)),
+                    ("motion", motion)):
         if b > 0:
             terms.append((name, b))
     terms += list(extra_terms)
@@ -225,7 +251,11 @@ def estimate_scene(scene, *, pings: int | None = None, write: bool = True,
         else:   # the draw grows with the density (its bound, mean + 6 σ, a little faster)
             drivers.append(Driver(f"targets.populations[{j}].density_per_m3", p.density_per_m3,
                                   "per m³", share))
-    for (key, spec), n, fb in zip(mesh_specs, per_mesh, file_bytes):
+    for (key, spec), n, fb, tb in zip(mesh_specs, per_mesh, file_bytes, tiled):
+        if tb is not None:      # bounded by its setting, not by its faces
+            drivers.append(Driver("effects.floor_tiles.memory_mb", scene.effects.floor_tiles.memory_mb,
+                                  "MB", tb))
+            continue
         share = n * (_FACE_BYTES + (scatterer_bytes if key.startswith("targets") else 0.0)) + fb
         drivers.append(Driver(f"{key}.mesh.{mesh_face_key(spec)}", n, "faces", share))
     if rays:
@@ -237,5 +267,6 @@ def estimate_scene(scene, *, pings: int | None = None, write: bool = True,
     return Estimate(_finite(memory), _finite(output), terms,
                     keys=("pings.count (or --pings), sampling.samples, the targets' count or "
                           "density, effects.reverberation.rays_per_square_degree, mesh segments, "
-                          "resolutions and files, the motion file's rows"),
+                          "resolutions and files, effects.floor_tiles.memory_mb, the motion "
+                          "file's rows"),
                     drivers=drivers)

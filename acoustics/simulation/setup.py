@@ -234,7 +234,8 @@ def resolve_mesh_sources(scene) -> MeshSources:
     from acoustics.paths.meshes import MeshSources
     src = scene.source_path
     return MeshSources(tuple(scene.boundaries), tuple(scene.targets.meshes),
-                       None if src is None else src.parent, str(src or "<scene>"), scene.seed)
+                       None if src is None else src.parent, str(src or "<scene>"), scene.seed,
+                       scene.effects.floor_tiles)
 
 
 def _resolve_targets(scene, medium: Medium, pose0: Pose) -> Targets:
