@@ -543,11 +543,14 @@ def end_to_end():
         n_modules = len(json.loads(modules.read_text()))
         for key, a, b, label in checks:
             ratio = best[a] / best[b]
-            # a command's wall is at least the warm chain's plus the import floor
+            # the warm chain's work and the imports one after the other (a run overlaps them)
             floor_ratio = (best["api"] + best["floor"]) / best["api"] if b == "api" else None
-            target_rows.append([label, f"{ratio:.2f}", f"{paired(a, b):.2f}",
+            pr = paired(a, b)
+            met = ("yes" if ratio <= _TARGETS[key] else
+                   "on the paired ratio, not the best" if pr <= _TARGETS[key] else "**no**")
+            target_rows.append([label, f"{ratio:.2f}", f"{pr:.2f}",
                                 f"{floor_ratio:.2f}" if floor_ratio else "",
-                                f"≤ {_TARGETS[key]:.2f}", "yes" if ratio <= _TARGETS[key] else "**no**"])
+                                f"≤ {_TARGETS[key]:.2f}", met])
         api = best["api"]
         rows = [["API: simulate → image → detect → count (warm process)", f"{api:.2f}", "1.00", "", "", "", ""],
                 ["the same chain as a script (a fresh process, start to end)", f"{best['api-script']:.2f}",
@@ -627,12 +630,14 @@ def end_to_end():
             f"{load_after:.1f} when it ended, on {cores} cores.\n\n"
             "**Targets** (issue 26; ratios of wall times; *best*: of the bests, *paired*: the "
             "median over the rounds of the ratio within a round):\n\n"
-            + table(["ratio", "best", "paired", "floor", "target", "met"], target_rows)
-            + f"\n\n*floor*: the ratio a command could not go below: the warm chain plus a fresh "
-              f"process that imports the {n_modules} modules `abacus run --no-plots` imports and "
-              f"exits ({best['floor']:.2f} s: the interpreter's start, the imports, their teardown), "
-              "which a command pays and a warm process does not. The compiled kernels' loading "
-              "(numba, in *simulate*) comes on top.\n"
+            + table(["ratio", "best", "paired", "chain + imports", "target", "met"], target_rows)
+            + f"\n\n*chain + imports*: the warm chain plus a fresh process that imports the "
+              f"{n_modules} modules `abacus run --no-plots` imports and exits ({best['floor']:.2f} s: "
+              "the interpreter's start, the imports, their teardown), one after the other: what a "
+              "command pays and a warm process does not, were nothing overlapped. A run overlaps "
+              "part of it (modules imported as a stage first needs them, beside the work on the "
+              "second core; the collector frozen at exit, `abacus.cli.app.main`), so it can come in "
+              "below. The compiled kernels' loading (numba, in *simulate*) comes on top.\n"
             + f"\n\n`abacus run` draws its figures through `abacus.figures.drawing`: here in {pool} "
               "(start method \"spawn\"), which imports matplotlib while the run imports and "
               "simulates, draws the first ping's images while it processes and the detection "
