@@ -91,6 +91,10 @@ def evaluate(tree: xr.DataTree, settings_list) -> dict:
     #    share one pool of candidate peaks, described once
     plans = []
     for st in settings_list:
+        if st.count.coincidence_correction != "none" or st.count.volume_edge != "hard":
+            notes.append("count.coincidence_correction and count.volume_edge are not applied in an "
+                         "experiment's per-ping counts (the hard, uncorrected counts; abacus count "
+                         "applies them)")
         key = st.image.model_dump_json()
         if key not in imaged:
             imaged[key] = form_images(rec, st.image, noise_band_hz=products.noise_band_of(tree))

@@ -329,11 +329,12 @@ def write_report(ds: xr.Dataset, out_dir) -> Path:
         summary.append([f"tracks over {ds.sizes['run']} run(s) of {int(ds.attrs.get('track_pings', 0))} "
                         "pings: passages counted / true", f"{int(np.nansum(b['run_counted_passages']))} / "
                         f"{int(np.nansum(b['run_true_passages']))}"])
+        nm = float(b["track_count_nmae"])
         summary.append(["nMAE of the track counts over the runs (Σ|counted − true| / Σ true)",
-                        f"{float(b['track_count_nmae']):.3f}"])
-        summary.append(["HOTA, DetA, AssA, LocA, IDF1, MOTA (means over the runs)",
-                        ", ".join(f"{float(b[f'{k}_mean']):.3f}" for k in
-                                  ("hota", "deta", "assa", "loca", "idf1", "mota"))])
+                        f"{nm:.3f}" if np.isfinite(nm) else "– (no fish passed)"])
+        summary.append(["HOTA, DetA, AssA, LocA, IDF1, MOTA (means over the runs with a fish or a track)",
+                        ", ".join(f"{v:.3f}" if np.isfinite(v := float(b[f'{k}_mean'])) else "–"
+                                  for k in ("hota", "deta", "assa", "loca", "idf1", "mota"))])
     timing = [["wall time (s)", f"{ds.attrs.get('wall_seconds', 0):.1f}"],
               ["workers", ds.attrs.get("workers", "")], ["scheduler", ds.attrs.get("scheduler", "")],
               ["tasks run / resumed", f"{ds.attrs.get('tasks_run', '')} / {ds.attrs.get('tasks_resumed', '')}"],

@@ -235,8 +235,14 @@ def _add_tracking(ds: xr.Dataset, tracked: dict, runs: list) -> None:
         "long_name": "nMAE of the track counts over the runs: sum |counted - true| / sum true "
                      "(Kay et al. 2022); over- and under-counts of runs do not cancel",
         "units": "1", "nan_means": "no truth, or no passage in any run"})
+    # a run without a fish passing and without a track scores HOTA 0 and LocA 1 by the
+    # convention of TrackEval: nothing to score, left out of the means (as benchmarks/density.py)
+    empty = (tracked["true_passages"] == 0) & (tracked["counted_passages"] == 0)
     for k in ("hota", "deta", "assa", "loca", "idf1", "mota", "motp"):
+        v = np.where(empty, np.nan, tracked[k])
         m = np.array([row[np.isfinite(row)].mean() if np.isfinite(row).any() else np.nan
-                      for row in tracked[k]], float)
+                      for row in v], float)
         ds[f"{k}_mean"] = xr.DataArray(m, dims="setting", attrs={
-            "long_name": f"mean over the runs of {long[k]}", "units": "m" if k == "motp" else "1"})
+            "long_name": f"mean over the runs with a fish or a track passing of {long[k]}",
+            "units": "m" if k == "motp" else "1",
+            "nan_means": "no run with a fish or a track passing the counting volume"})

@@ -471,6 +471,23 @@ class RecordChain:
         return nominal_echo_length_m(rf.response, rf.rate_hz, rec.sound_speed_m_s,
                                      level_db=st.single_target.echo_length_level_db)
 
+    @cached_property
+    def moving_echo_range_phase_deg(self) -> float:
+        """The range phase deviation (deg) of one point echo of a target closing at
+        ``single_target.maximum_radial_speed_m_s``: what the range phase rule's limit allows
+        for motion (:func:`processing.backscatter.echo_criteria.moving_echo_range_phase_deg`)."""
+        from processing.backscatter.echo_criteria import moving_echo_range_phase_deg
+        from processing.imaging.compression import RangeFilter
+        rec, st = self.record, self.settings
+        v = st.single_target.maximum_radial_speed_m_s
+        if not v > 0:
+            return 0.0
+        rf = RangeFilter.design(rec.replica, n_samples=rec.samples.shape[-1], rate_hz=rec.rate_hz,
+                                bandwidth_hz=rec.bandwidth_hz, range_window=st.image.range_window)
+        f_d = 2.0 * v * rec.center_frequency_hz / rec.sound_speed_m_s
+        return moving_echo_range_phase_deg(rec.replica, rf.spectrum, rf.rate_hz, f_d,
+                                           level_db=st.single_target.echo_length_level_db)
+
     def target_detection(self, detected: Detected | None = None, *, chunk: int = 8) -> dict:
         """Single-target detection by the echosounder criteria
         (:mod:`processing.backscatter.echo_criteria`, ``single_target`` settings): every
@@ -532,13 +549,16 @@ class RecordChain:
         # applies it to both, each widened by its own noise (a plane without a phase, NaN, is
         # not tested)
         both = np.stack([phase_dev, az_phase_dev])
+        motion = (self.moving_echo_range_phase_deg if sts.maximum_range_phase_deviation is not None
+                  and np.isfinite(range_dev).any() else 0.0)
         rule = verdicts(sidelobe=sidelobe, ts_comp_db=ts_c, echo_length=echo_length,
                         phase_deviation_deg=both, phase_noise_deg=noise[:2], compensation_db=comp,
                         spacing=spacing, range_phase_deviation_deg=range_dev,
-                        range_phase_noise_deg=noise[2], settings=sts)
-        limits = [phase_limit_deg(lim, nz, sts.phase_deviation_sigmas) for lim, nz in
-                  ((sts.maximum_phase_deviation, noise[0]), (sts.maximum_phase_deviation, noise[1]),
-                   (sts.maximum_range_phase_deviation, noise[2]))]
+                        range_phase_noise_deg=noise[2], settings=sts,
+                        range_phase_motion_deg=motion)
+        limits = [phase_limit_deg(lim, nz, sts.phase_deviation_sigmas, d) for lim, nz, d in
+                  ((sts.maximum_phase_deviation, noise[0], 0.0), (sts.maximum_phase_deviation, noise[1], 0.0),
+                   (sts.maximum_range_phase_deviation, noise[2], motion))]
         return {"ts_uncomp_db": ts_u, "ts_comp_db": ts_c, "beam_pattern_db": pat,
                 "beam_compensation_db": comp, "echo_length_m": length_m, "echo_length": echo_length,
                 "phase_deviation_deg": phase_dev, "angle_deviation_deg": angle_dev,

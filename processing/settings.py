@@ -280,6 +280,13 @@ class SingleTargetSettings(ConfigModel):
     than the range resolution turn it by ≈ Im(a₂/(a₁+a₂)) δ p′/p, first order in their
     separation δ where the envelope broadens at second order (rule
     ``maximum_range_phase_deviation``; no SONAR-netCDF4 parameter); null: not applied."""
+    maximum_radial_speed_m_s: NonNegativeReal = Field(1.0, le=100)
+    """The fastest radial speed (m/s, target relative to the sonar) a single target may have:
+    a moving echo's phase runs along range (the pulse's range–Doppler coupling: ≈ 2° per m/s
+    for the 20 kHz LFM pulse at 420 kHz; far more for a long CW pulse), so the range phase
+    limit is widened in quadrature by what one echo at this speed shows, computed from the
+    record's replica (processing/backscatter/echo_criteria.py,
+    ``moving_echo_range_phase_deg``). 0: still targets only (a calibration sphere)."""
     phase_deviation_sigmas: NonNegativeReal = Field(2.0, le=100)
     """k: each phase limit L becomes (L² + (k σ_noise)²)^½ at each candidate, σ_noise the
     spread that noise alone gives the measure at that echo's samples (σ/|I| per sample, the

@@ -290,3 +290,17 @@ def test_track_pings_outside_the_experiment_is_refused(tmp_path, bad):
     with pytest.raises(ExperimentError, match="--track-pings must be a whole number of pings from 2"):
         run_experiment(sc, tmp_path / "x", pings=range(12), track_pings=bad, workers=0, report=False)
     assert not (tmp_path / "x").exists()
+
+
+def test_runs_without_a_fish_or_a_track_are_left_out_of_the_score_means(tmp_path):
+    """A run where nothing passes scores HOTA 0 and LocA 1 by TrackEval's convention: nothing to
+    score, so it does not pull the means; with no run left they are NaN, and so is the nMAE
+    (no true passage)."""
+    sc = text_scene("name: nobody-passes\nseed: 5\nnoise: {enabled: true}\n")
+    path = run_experiment(sc, tmp_path / "e", pings=range(4), track_pings=2, workers=0,
+                          figure_pings=0, report=False)
+    with xr.open_dataset(path) as ds:
+        t, c = ds["run_true_passages"].values, ds["run_counted_passages"].values
+        assert ((t == 0) & (c == 0)).all()
+        assert (ds["run_hota"].values == 0).all()         # what the tracker's own score says
+        assert np.isnan(ds["hota_mean"].values).all() and np.isnan(ds["track_count_nmae"].values).all()

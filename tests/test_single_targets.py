@@ -394,3 +394,51 @@ def test_abacus_targets_writes_every_candidate_with_its_rule(tmp_path):
     table = processing.single_targets(tmp_path / "fish.nc")
     processing.write_targets_csv(table, tmp_path / "st.csv", accepted_only=True)
     assert len(list(csv.DictReader(open(tmp_path / "st.csv")))) == len(truth)
+
+
+MOVING = """name: moving-point
+noise: {{enabled: false}}
+sonar:
+  pose: {{position_m: [0.0, 0.0, 1.0], boresight: [0.0, 0.0, 1.0], receiver_axis: [0.0, 1.0, 0.0]}}
+effects: {{doppler: true}}
+targets:
+  points:
+    - {{frame: world, position_m: [0.0, 0.0, 20.0], velocity_m_s: [0.0, 0.0, {v}],
+       backscatter: {{model: fixed, ts_db: -40}}}}
+processing:
+  image: {{range_m: [16, 22]}}
+  detect: {{method: fraction_of_peak, fraction: 0.05}}
+"""
+
+
+def test_a_lone_moving_target_is_a_single_target_up_to_the_stated_radial_speed():
+    """A point target moving radially shows a range phase that runs along its echo (the LFM
+    pulse's range–Doppler coupling), which the range phase rule alone would take for two
+    echoes. Its measured deviation is the pulse's ambiguity-function phase at f_d = 2 v f0 / c,
+    computed from the replica alone; the rule allows for targets up to
+    ``maximum_radial_speed_m_s`` and rejects faster ones."""
+    from acoustics.scene.load import scene_from_text
+    from processing.backscatter.echo_criteria import moving_echo_range_phase_deg
+    from processing.imaging.compression import RangeFilter
+    for v, single_at_default in ((0.7, True), (2.0, False)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            tree = acoustics.simulate(scene_from_text(MOVING.format(v=v)))
+            chain = RecordChain(tree)
+            found = chain.target_detection()
+        i = int(np.argmax(chain.detected().table["amplitude"]))
+        rec = chain.record
+        rf = RangeFilter.design(rec.replica, n_samples=rec.samples.shape[-1], rate_hz=rec.rate_hz,
+                                bandwidth_hz=rec.bandwidth_hz, range_window=chain.settings.image.range_window)
+        want = moving_echo_range_phase_deg(rec.replica, rf.spectrum, rf.rate_hz,
+                                           2 * v * rec.center_frequency_hz / rec.sound_speed_m_s)
+        assert want > 1.0                                    # beyond the fixed 1° limit
+        assert found["range_phase_deviation_deg"][i] == pytest.approx(want, rel=0.15)
+        assert bool(found["single_target"][i]) is single_at_default, found["rejected_by"][i]
+        for v_max, single in ((0.0, False), (v + 0.5, True)):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                t = RecordChain(tree, {"single_target": {"maximum_radial_speed_m_s": v_max}}).target_detection()
+            assert bool(t["single_target"][i]) is single, (v, v_max, t["rejected_by"][i])
+            if not single:
+                assert t["rejected_by"][i] == "maximum_range_phase_deviation"

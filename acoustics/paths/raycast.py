@@ -206,7 +206,17 @@ class RayCaster:
         self._buffers = None
 
     def first_face(self, mesh_index: int) -> int:
-        """The caster's number of a mesh's first facet (facet k of the mesh is this + k)."""
+        """The caster's number of a mesh's first facet (facet k of the mesh is this + k).
+
+        Parameters
+        ----------
+        mesh_index : int
+            The mesh's index among the caster's meshes.
+
+        Returns
+        -------
+        int
+        """
         for i, _, start in self._tiled:
             if i == mesh_index:
                 return start

@@ -11,6 +11,8 @@ blocks, where the reflection law cannot hold, the pairs in groups that walk the 
 """
 from __future__ import annotations
 
+import threading
+
 import numba as nb
 import numpy as np
 
@@ -613,9 +615,12 @@ def _tree(centre, radius, axis, spread, fan: int = 8):
 
 
 #: the blocks of the last few meshes searched, keyed by where their arrays live, their shapes
-#: and a sample of their values (the arrays are held, so that the memory stays theirs); a
-#: moving sea's mesh is new every ping and simply misses
+#: and a sample of their values (the arrays are held, so that the memory stays theirs: a key
+#: cannot be taken over by another array, only by one changed in place, which abacus' meshes
+#: never are); a moving sea's mesh is new every ping and simply misses. Shared by the threads
+#: of one process (two simulations at once), hence the lock.
 _BLOCK_CACHE: list = []
+_BLOCK_LOCK = threading.Lock()
 
 
 def _blocks_of(V, F, normals):
@@ -623,22 +628,38 @@ def _blocks_of(V, F, normals):
     it was normalised). Returns (blocks, unit normals)."""
     key = tuple((a.__array_interface__["data"][0], a.shape, float(a.reshape(-1)[::211].sum()))
                 for a in (V, F, normals))
-    for i, entry in enumerate(_BLOCK_CACHE):
-        if entry[0] == key:
-            # most recently used first: a still floor is not pushed out by each ping's new sea
-            _BLOCK_CACHE.insert(0, _BLOCK_CACHE.pop(i))
-            return entry[2], entry[3]
+    with _BLOCK_LOCK:
+        for i, entry in enumerate(_BLOCK_CACHE):
+            if entry[0] == key:
+                # most recently used first: a still floor is not pushed out by each ping's new sea
+                _BLOCK_CACHE.insert(0, _BLOCK_CACHE.pop(i))
+                return entry[2], entry[3]
     N = np.ascontiguousarray(_unit(normals))
     blocks = _blocks(V, F, N)
-    _BLOCK_CACHE.insert(0, (key, (V, F, normals), blocks, N))
-    del _BLOCK_CACHE[4:]
+    with _BLOCK_LOCK:
+        _BLOCK_CACHE.insert(0, (key, (V, F, normals), blocks, N))
+        del _BLOCK_CACHE[4:]
     return blocks, N
 
 
 def search_blocks(vertices, faces, normals):
-    """(blocks, unit normals): the blocks of facets (and their tree) :func:`candidate_facets`
-    culls with and the normals they were made from, for a caller that keeps them with its
-    mesh (its ``blocks`` argument)."""
+    """The blocks of facets (and their tree) :func:`candidate_facets` culls with, and the unit
+    normals they were made from, for a caller that keeps them with its mesh (its ``blocks``
+    argument).
+
+    Parameters
+    ----------
+    vertices : array_like, shape (n_v, 3)
+        Mesh vertices (m).
+    faces : array_like of int, shape (n_f, 3)
+    normals : array_like, shape (n_v, 3)
+        Vertex normals (any length).
+
+    Returns
+    -------
+    (tuple, ndarray of shape (n_v, 3))
+        The blocks (opaque to callers) and the unit normals.
+    """
     N = np.ascontiguousarray(_unit(np.asarray(normals, float)))
     return _blocks(np.ascontiguousarray(np.asarray(vertices, float)),
                    np.ascontiguousarray(np.asarray(faces, np.int64)), N), N

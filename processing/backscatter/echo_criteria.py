@@ -92,6 +92,58 @@ def nominal_echo_length_m(response, rate_hz: float, sound_speed_m_s: float, *, l
     return float((hi - lo) / (rate_hz * upsample) * sound_speed_m_s / 2.0)
 
 
+def moving_echo_range_phase_deg(replica, filter_spectrum, rate_hz: float, doppler_hz: float, *,
+                                level_db: float = 6.0, upsample: int = 8) -> float:
+    """The range phase deviation (deg) that one point echo shows when it is Doppler shifted:
+    what a lone fish moving radially adds to the measure of :func:`echo_shape`.
+
+    A target closing at radial speed v returns the pulse shifted by f_d = 2 v f₀ / c; through
+    the matched filter of the unshifted replica its compressed echo is the pulse's ambiguity
+    function at that shift, whose phase runs along range (for a linear chirp, linearly: the
+    range–Doppler coupling), so a moving single echo reads as two echoes closer than the
+    resolution would. Computed here from the record's own replica and filter.
+
+    Parameters
+    ----------
+    replica : array_like of complex, shape (M,)
+        The transmitted pulse at the record's sampling rate (complex baseband).
+    filter_spectrum : array_like of complex, shape (nfft,)
+        The range filter's U*(f) W(f) / G (:attr:`processing.imaging.compression.RangeFilter.spectrum`).
+    rate_hz : float
+        Sampling rate (Hz).
+    doppler_hz : float
+        The echo's Doppler shift f_d (Hz).
+    level_db : float
+        The echo's ends, as in :func:`echo_shape`.
+    upsample : int
+        Zero-padding factor of the inverse FFT (the measure is taken on a fine grid).
+
+    Returns
+    -------
+    float
+        Standard deviation (deg) of the unwrapped phase between the −``level_db`` points,
+        relative to the peak's; 0 for no shift.
+    """
+    rep = np.asarray(replica, complex)
+    h = np.asarray(filter_spectrum, complex)
+    n = h.size
+    t_s = np.arange(rep.size) / float(rate_hz)
+    y = np.fft.fft(rep * np.exp(2j * np.pi * float(doppler_hz) * t_s), n) * h
+    big = np.zeros(n * upsample, complex)
+    half = n // 2
+    big[:half], big[n * upsample - (n - half):] = y[:half], y[half:]
+    out = np.fft.fftshift(np.fft.ifft(big))
+    env = np.abs(out)
+    peak = int(np.argmax(env))
+    lo, hi = _crossings(env, peak, 10.0 ** (-level_db / 20.0))
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return float("nan")
+    rows = np.arange(int(np.ceil(lo)), int(np.floor(hi)) + 1)
+    if rows.size < 2:
+        return 0.0
+    return float(np.degrees(np.std(np.unwrap(np.angle(out[rows] * np.conj(out[peak]))))))
+
+
 def _crossings(env, i, fraction):
     """Fractional indices where ``env`` first falls below ``fraction`` x env[i] each side of i;
     NaN on a side where it never does."""
@@ -190,7 +242,9 @@ def echo_shape(envelope, row: int, *, range_step_m: float, level_db: float = 6.0
     if profiles is not None:
         pr = np.asarray(profiles, complex).reshape(n, -1)
         rel = pr[rows] * np.conj(pr[peak])[None, :]
-        range_sd = float(np.degrees(np.mean(np.std(np.angle(rel), axis=0)))) if rows.size >= 2 else 0.0
+        # unwrapped along range: a phase that runs past ±180° across the echo is not small
+        range_sd = (float(np.degrees(np.mean(np.std(np.unwrap(np.angle(rel), axis=0), axis=0))))
+                    if rows.size >= 2 else 0.0)
     if noise_sigma is not None and np.isfinite(noise_sigma):
         inv_a = 1.0 / np.maximum(env[rows], np.finfo(float).tiny) ** 2
         noise1 = float(np.degrees(noise_sigma * np.sqrt(np.mean(inv_a))))
@@ -244,10 +298,12 @@ def split_phase_noise_gain(x_m, weights, beam_step_u: float, wavelength_m: float
     return float(k * split_m * beam_step_u * np.sqrt(max(2.0 * (1.0 - rho2), 0.0)) / (2.0 * curvature))
 
 
-def phase_limit_deg(limit_deg, noise_deg, sigmas: float):
-    """The limit of a phase rule at each candidate: (L² + (k σ_noise)²)^½ — the fixed limit
-    bounds what the target may add, the noise adds in quadrature; L where the noise is not
-    known (NaN) or k = 0 (the fixed limit alone: the EK60/Echoview convention).
+def phase_limit_deg(limit_deg, noise_deg, sigmas: float, motion_deg: float = 0.0):
+    """The limit of a phase rule at each candidate: (L² + D² + (k σ_noise)²)^½ — the fixed limit
+    bounds what the target may add, the motion D what a single echo of the fastest allowed
+    radial speed shows (the range phase only: :func:`moving_echo_range_phase_deg`), the noise
+    adds in quadrature; L where neither is known (NaN) or k = 0 and D = 0 (the fixed limit
+    alone: the EK60/Echoview convention).
 
     Parameters
     ----------
@@ -257,6 +313,8 @@ def phase_limit_deg(limit_deg, noise_deg, sigmas: float):
         The noise's spread σ_noise of the measure at each candidate (deg).
     sigmas : float
         k.
+    motion_deg : float
+        D (deg); NaN counts as 0.
 
     Returns
     -------
@@ -266,7 +324,8 @@ def phase_limit_deg(limit_deg, noise_deg, sigmas: float):
     if limit_deg is None:
         return np.full(noise.shape, np.inf)
     extra = np.where(np.isfinite(noise), float(sigmas) * noise, 0.0)
-    return np.sqrt(float(limit_deg) ** 2 + extra ** 2)
+    d = float(motion_deg) if np.isfinite(motion_deg) else 0.0
+    return np.sqrt(float(limit_deg) ** 2 + d ** 2 + extra ** 2)
 
 
 def echo_spacing(ping, range_m, azimuth_rad, candidate, *, azimuth_resolution_rad: float):
@@ -302,7 +361,7 @@ def echo_spacing(ping, range_m, azimuth_rad, candidate, *, azimuth_resolution_ra
 
 def verdicts(*, sidelobe, ts_comp_db, echo_length, phase_deviation_deg, compensation_db,
              spacing, settings, phase_noise_deg=None, range_phase_deviation_deg=None,
-             range_phase_noise_deg=None):
+             range_phase_noise_deg=None, range_phase_motion_deg: float = 0.0):
     """The first rule of :data:`RULES` each candidate fails ("" when it is a single target).
 
     Parameters
@@ -323,6 +382,9 @@ def verdicts(*, sidelobe, ts_comp_db, echo_length, phase_deviation_deg, compensa
         with ``settings.phase_deviation_sigmas`` it widens the limit (:func:`phase_limit_deg`).
     range_phase_deviation_deg, range_phase_noise_deg : array_like, shape (n,), optional
         The range phase deviation and its noise's spread (deg); NaN or not given: not tested.
+    range_phase_motion_deg : float
+        What a single echo at ``settings.maximum_radial_speed_m_s`` shows in the range phase
+        (deg; :func:`moving_echo_range_phase_deg`), added to its limit in quadrature.
     compensation_db : array_like, shape (n,)
         One-way beam compensation (dB, ≥ 0 in the main lobe).
     spacing : array_like, shape (n,)
@@ -346,7 +408,7 @@ def verdicts(*, sidelobe, ts_comp_db, echo_length, phase_deviation_deg, compensa
            else np.asarray(range_phase_deviation_deg, float))
     rpn = (np.full(ts.shape, np.nan) if range_phase_noise_deg is None
            else np.asarray(range_phase_noise_deg, float))
-    range_bad = rpd > phase_limit_deg(st.maximum_range_phase_deviation, rpn, k)
+    range_bad = rpd > phase_limit_deg(st.maximum_range_phase_deviation, rpn, k, range_phase_motion_deg)
     comp = np.asarray(compensation_db, float)
     tests = {
         "sidelobe": np.asarray(sidelobe, bool),

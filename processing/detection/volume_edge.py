@@ -86,8 +86,18 @@ def elevation_sd_rad(snr_db, azimuth_rad, elevation_rad, *, baseline_m, waveleng
 
 
 def baseline_of(record):
-    """The interferometric baseline b = c_B − c_A (m, sonar frame) of a record: the mean
-    element positions of subarrays B and A, or None (no subarrays A and B)."""
+    """The interferometric baseline of a record: b = c_B − c_A, the mean element positions of
+    subarrays B and A.
+
+    Parameters
+    ----------
+    record : processing.base.dataset.SonarRecord
+
+    Returns
+    -------
+    ndarray, shape (3,), or None
+        b (m, sonar frame); None without subarrays A and B.
+    """
     groups = record.image_groups
     if "A" not in groups or "B" not in groups:
         return None
