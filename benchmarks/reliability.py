@@ -425,6 +425,9 @@ def probes() -> list[Probe]:
             ("--sweep 10^6 points", ["experiment", "s.yaml", "-o", "e", "--sweep", "threshold=0:1000000:1"]),
             ("--sweep a value the schema refuses", ["experiment", "s.yaml", "-o", "e", "--sweep", "noise.sigma_counts=-1,2"]),
             ("--workers -1", ["experiment", "s.yaml", "-o", "e", "--workers", "-1"]),
+            ("--track-pings 1", ["experiment", "s.yaml", "-o", "e", "--pings", "4", "--track-pings", "1"]),
+            ("--track-pings beyond the pings", ["experiment", "s.yaml", "-o", "e", "--pings", "4", "--track-pings", "9"]),
+            ("--track-pings text", ["experiment", "s.yaml", "-o", "e", "--track-pings", "x"]),
             ("--format xml", ["simulate", "s.yaml", "-o", "s.nc", "--format", "xml"]),
             ("unknown option", ["run", "s.yaml", "--colour"]),
             ("no command", []),
@@ -653,6 +656,16 @@ def _issue27_probes(add):
     add("size_drivers", "sv --range-bin 1e-9", ["sv", "d.nc", "--range-bin", "1e-9", "--csv", "m.csv"],
         files={"d.nc": _dataset("good")}, says=("--range-bin",))
     # 4. values a scene check must catch before a run fails on them
+    floor = ("boundaries:\n  - name: floor\n    role: floor\n    mesh: {shape: rough_floor, depth_m: 30.0, "
+             "size_m: [40.0, 40.0], resolution_m: 0.5, rms_height_m: 0.1, correlation_length_m: 1.5}\n")
+    add("checked_values", "floor tiles with 0.01 MB of memory", ["run", "s.yaml", "-o", "out"],
+        files={"s.yaml": scene(floor + "effects: {floor_tiles: {enabled: true, memory_mb: 0.01}}\n")},
+        says=("memory_mb",))
+    add("checked_values", "a negative radial speed for single targets", ["scene", "check", "s.yaml"],
+        files={"s.yaml": scene("processing: {single_target: {maximum_radial_speed_m_s: -1}}\n")},
+        says=("maximum_radial_speed_m_s",))
+    add("checked_values", "an unknown count.volume_edge", ["scene", "check", "s.yaml"],
+        files={"s.yaml": scene("processing: {count: {volume_edge: fuzzy}}\n")}, says=("volume_edge",))
     add("checked_values", "image range outside the record", ["scene", "check", "s.yaml"],
         files={"s.yaml": scene("processing: {image: {range_m: [40.0, 60.0]}}\n")}, says=("range_m",))
     add("checked_values", "swell resolution 1e-300 m", ["scene", "check", "s.yaml"],
