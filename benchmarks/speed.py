@@ -1181,14 +1181,15 @@ simulate_ping(setup, 0, cache=cache)  # warm, on the run's own cache: kernels, t
 t_first = time.perf_counter() - t0
 log = StageLog()
 floor = cache.ray_scene.meshes[0].mesh if cache.ray_scene is not None else None
-builds0 = floor.builds if is_tiled(floor) else 0
+held = cache.ray_scene.caster.tile_cache(0) if is_tiled(floor) else None   # the run's tiles
+builds0 = held.builds if held is not None else 0
 for p in range(1, 1 + pings):       # what simulate does per ping
     simulate_ping(setup, p, cache=cache, log=log)
 st = log.seconds
 tiles = None
 if is_tiled(floor):
-    tiles = {"n_tiles": floor.n_tiles, "builds_per_ping": (floor.builds - builds0) / pings,
-             "peak_cached_mb": floor.peak_cached_bytes / 1e6, "memory_mb": floor.memory_bytes / 1e6,
+    tiles = {"n_tiles": floor.n_tiles, "builds_per_ping": (held.builds - builds0) / pings,
+             "peak_cached_mb": held.peak_cached_bytes / 1e6, "memory_mb": held.memory_bytes / 1e6,
              "tile_facets": int(floor.face_start[1])}
 print(json.dumps({"ping_s": sum(st.values()) / pings, "first_s": t_first, "stages_s": st,
                   "pings": pings, "tiles": tiles,

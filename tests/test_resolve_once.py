@@ -269,3 +269,84 @@ def test_pings_from_a_setup_without_its_scene_equal_the_run():
         np.testing.assert_array_equal(x.real.T.astype(np.float32), got_r[0, i])
         np.testing.assert_array_equal(x.imag.T.astype(np.float32), got_i[0, i])
     assert len(targets) == 6
+
+
+# ------------------------------------------------------------------ a floor in tiles
+#: a small rough floor streamed in tiles whose memory setting holds fewer tiles than the floor
+#: has (tiles are evicted and built again), under a sonar that rolls, with a target that echoes
+#: on it, reverberation and a specular search over it
+TILED = """
+name: tiled
+seed: 5
+sonar:
+  pose: {position_m: [0, 0, 2.0], boresight: [0.866, 0, 0.5], receiver_axis: [0, 1, 0]}
+  motion: {kind: series, series: {time_s: [0, 4], roll_deg: [0, 3], pitch_deg: [0, -1]}}
+medium: {sound_speed_m_s: 1500.0}
+sampling: {samples: 1200}
+targets:
+  points:
+    - {frame: world, position_m: [12.0, 0.5, 8.0]}
+boundaries:
+  - name: floor
+    role: floor
+    mesh: {shape: rough_floor, depth_m: 10.0, center_m: [12.0, 0.0], size_m: [24.0, 12.0],
+           resolution_m: 0.25, rms_height_m: 0.05, correlation_length_m: 1.0, slope: [-0.02, 0.0],
+           seed: 4}
+    scattering: {law: lambert, mu_db: -27.0}
+    reflection: {model: constant, coefficient: 0.5}
+effects:
+  max_bounces: 1
+  reverberation: {enabled: true, rays_per_square_degree: 0.5}
+  arrivals: {enabled: true, floor_db: null}
+  floor_tiles: {enabled: true, memory_mb: 2.0, tile_vertices: 33}
+pings: {count: 2, interval_s: 0.5}
+"""
+
+
+def _tiled_setup():
+    from acoustics.paths.tiles import is_tiled
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SceneWarning)
+        setup = make_setup(scene_from_text(TILED))
+    floor = setup.rays.meshes[0].mesh
+    assert is_tiled(floor)
+    return setup, floor
+
+
+def test_a_tiled_floor_leaves_the_setup_unchanged_and_two_runs_agree():
+    """The built tiles of a floor in tiles are the run's (its caster's TileCache), not the
+    frozen setup's: two runs from one setup leave its digest as it was, hold their own tiles,
+    and give the same samples bit for bit."""
+    setup, floor = _tiled_setup()
+    before = _fingerprint(setup)
+    runs, caches = [], []
+    for _ in range(2):
+        cache, tables = RunCache(setup), []
+        runs.append([simulate_ping(setup, p, cache=cache, arrivals=tables)[0] for p in range(2)])
+        assert _fingerprint(setup) == before
+        # the floor was reached (echoes off it) and its tiles held by the run, within the setting
+        seqs = {str(s) for t in tables for s in t["sequence"]}
+        assert any("F" in s.split("-") for s in seqs)
+        tiles = cache.ray_scene.caster.tile_cache(0)
+        assert tiles.floor is floor and tiles.builds > 0
+        assert 0 < tiles.peak_cached_bytes <= tiles.memory_bytes == 2.0e6
+        assert len(tiles) < floor.n_tiles < tiles.builds      # tiles evicted and built again
+        caches.append(tiles)
+    assert caches[0] is not caches[1]
+    assert not {id(t) for t in caches[0].tiles.values()} & {id(t) for t in caches[1].tiles.values()}
+    assert np.abs(runs[0][0]).max() > 0
+    for a, b in zip(*runs):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_the_fingerprint_sees_tiles_kept_in_the_floor():
+    """The digest covers the tiled floor: a built tile kept on the floor object (where the
+    tiles lived before the run's TileCache) changes it."""
+    setup, floor = _tiled_setup()
+    before = _fingerprint(setup)
+    floor.held = {0: floor.build(0)}
+    try:
+        assert _fingerprint(setup) != before
+    finally:
+        del floor.held
+    assert _fingerprint(setup) == before

@@ -174,18 +174,24 @@ class RayCaster:
         self.face_normal = cat(normal, (0, 3))
         self.face_v0 = cat(v0, (0, 3))
         # tiled floors (acoustics/paths/tiles.py): their facets are numbered after the whole
-        # meshes', (mesh index, tiles, first facet) each; never held whole
+        # meshes', (mesh index, the run's TileCache of the floor, first facet) each; never held
+        # whole. The built tiles are the caster's (the run's), not the floor's (the frozen
+        # set-up's); a caster rebuilt for a new sea keeps a still floor's tiles
+        from acoustics.paths.tiles import TileCache
         self._tiled = []
         start = self.faces.shape[0]
         for i in np.flatnonzero(tiled):
-            self._tiled.append((int(i), self.meshes[i].mesh, start))
-            start += self.meshes[i].mesh.n_faces
+            floor = self.meshes[i].mesh
+            held = None if previous is None else next(
+                (c for _, c, _ in previous._tiled if c.floor is floor), None)
+            self._tiled.append((int(i), held if held is not None else TileCache(floor), start))
+            start += floor.n_faces
         # rows n, n·v0: one cache line per hit when refining
         self.face_plane = np.empty((self.faces.shape[0], 4))
         self.face_plane[:, :3] = self.face_normal
         self.face_plane[:, 3] = np.einsum("ij,ij->i", self.face_normal, self.face_v0)
         extents = [float(np.max(np.abs(self.vertices)))] if len(self.vertices) else []
-        extents += [tiles.extent_m for _, tiles, _ in self._tiled]
+        extents += [tiles.floor.extent_m for _, tiles, _ in self._tiled]
         self.extent_m = max(extents) if extents else 1.0
         self.eps_m = max(64 * np.spacing(np.float32(max(self.extent_m, 1.0))).item(), 1e-7)
         self.threads = threads or os.cpu_count() or 1
@@ -222,6 +228,29 @@ class RayCaster:
                 return start
         own = np.flatnonzero(self.face_mesh == mesh_index)
         return int(own[0]) if own.size else 0
+
+    def tile_cache(self, mesh_index: int):
+        """The :class:`~acoustics.paths.tiles.TileCache` this caster holds for a tiled floor
+        (its built tiles; the floor itself is not changed by a query).
+
+        Parameters
+        ----------
+        mesh_index : int
+            The floor's index among the caster's meshes.
+
+        Returns
+        -------
+        TileCache
+
+        Raises
+        ------
+        KeyError
+            The mesh is not a tiled floor.
+        """
+        for i, tiles, _ in self._tiled:
+            if i == mesh_index:
+                return tiles
+        raise KeyError(f"mesh {mesh_index} of the ray caster is not a tiled floor")
 
     def _build_part(self, mesh_idx, robust, still):
         """(Embree scene, global face index of each of its faces, its meshes, still) for the

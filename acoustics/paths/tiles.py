@@ -1,12 +1,16 @@
-"""A generated rough floor in tiles, built on demand and held in a cache of bounded memory.
+"""A generated rough floor in tiles, built on demand and held in a run's cache of bounded memory.
 
 A ``rough_floor`` of 10⁷ facets held whole costs ≈ 1.5 kB a facet (its mesh, the caster's copy,
 Embree's BVH, the specular search's blocks): 15 GB. With ``effects.floor_tiles.enabled``,
 the floor is never held whole. Its grid of vertices is cut into square tiles of
 ``tile_vertices`` per side (neighbours share their edge vertices, so every facet lies in exactly
 one tile); a tile is generated, meshed and given its Embree scene when a ray batch, a segment or
-a specular search first needs it, and kept in a cache that evicts the least recently used tile
-once the built tiles would exceed the setting. Which tiles a query needs is decided from each
+a specular search first needs it, and kept in a :class:`TileCache` that evicts the least
+recently used tile once the built tiles would exceed the setting. The floor itself
+(:class:`FloorTiles`, held by the run's frozen set-up) is an immutable description and
+generator; the cache is the run's (its ray caster's, built per run by the
+:class:`~acoustics.simulation.setup.RunCache`), so a query never changes the set-up and two
+runs from one set-up share no built tile. Which tiles a query needs is decided from each
 tile's bounding box, known from a pass over the heights at set-up (heights only, a tile at a
 time): a ray or segment needs the tiles its reach crosses; a specular search those whose
 bounding sphere reaches into its fan (``effects.specular.beam_level_db``), else all.
@@ -34,7 +38,7 @@ import numpy as np
 
 from acoustics.seeds import ping_rng
 
-__all__ = ["FloorTiles", "Tile", "TileMemoryError", "tile_bytes", "is_tiled"]
+__all__ = ["FloorTiles", "Tile", "TileCache", "TileMemoryError", "tile_bytes", "is_tiled"]
 
 #: most vertices of a tiled floor (its set-up pass over the heights takes ≈ 1 s per 10⁶)
 MAX_TILED_VERTICES = 10**8
@@ -234,10 +238,6 @@ class FloorTiles:
                 f"(≈ {least / 1e6:.3g} MB at tile_vertices {t}): raise memory_mb to at least "
                 f"{least / 1e6:.3g} or lower effects.floor_tiles.tile_vertices")
         self._kernel = _kernel(res, spec.correlation_length_m) if spec.rms_height_m > 0 else None
-        self.cache: OrderedDict[int, Tile] = OrderedDict()
-        self.cached_bytes = 0.0
-        self.peak_cached_bytes = 0.0
-        self.builds = 0
         # bounding boxes (sonar frame) from a pass over the heights, a tile at a time
         self.box_lo = np.empty((self.n_tiles, 3))
         self.box_hi = np.empty((self.n_tiles, 3))
@@ -247,12 +247,6 @@ class FloorTiles:
         self.extent_m = float(max(np.abs(self.box_lo).max(), np.abs(self.box_hi).max()))
         self.centre = (self.box_lo + self.box_hi) / 2
         self.radius = np.linalg.norm(self.box_hi - self.box_lo, axis=1) / 2
-
-    def __getstate__(self):
-        # a copy (a worker's) starts with no tiles built: Embree's scenes do not travel
-        state = dict(self.__dict__)
-        state.update(cache=OrderedDict(), cached_bytes=0.0)
-        return state
 
     # ------------------------------------------------------------- generation
     def _window(self, k: int):
@@ -304,7 +298,9 @@ class FloorTiles:
         floor equals (tests, small floors only)."""
         return self._vertices(0, self.nx, 0, self.ny), _grid_faces(self.nx, self.ny)
 
-    def _build(self, k: int) -> Tile:
+    def build(self, k: int) -> Tile:
+        """Tile k, generated, meshed and given its Embree scene (the floor is not changed: a
+        :class:`TileCache` keeps what it builds)."""
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
 
@@ -323,41 +319,13 @@ class FloorTiles:
         f = _grid_faces(i1 - i0, j1 - j0)
         embree = rtcore_scene.EmbreeScene(robust=self.robust)
         TriangleMesh(scene=embree, vertices=v.astype(np.float32), indices=f.astype(np.int32))
-        self.builds += 1
         return Tile(int(k), v, f, n, face_planes(v, f), int(self.face_start[k]), embree)
 
-    def tile(self, k: int) -> Tile:
-        """Tile k, from the cache or built (evicting the least recently used tiles first)."""
-        k = int(k)
-        t = self.cache.get(k)
-        if t is not None:
-            self.cache.move_to_end(k)
-            return t
-        need = tile_bytes_of(int(self.face_start[k + 1] - self.face_start[k]))
-        while self.cache and self.cached_bytes + need > self.memory_bytes:
-            _, old = self.cache.popitem(last=False)
-            self.cached_bytes -= old.nbytes
-        t = self._build(k)
-        self.cache[k] = t
-        self.cached_bytes += t.nbytes
-        self.peak_cached_bytes = max(self.peak_cached_bytes, self.cached_bytes)
-        return t
-
     # ---------------------------------------------------------------- queries
-    def visit_order(self, tiles) -> list:
-        """``tiles`` (indices) in the order to visit them: those built, most recently used
-        first, then the others in index order — a scan that follows the previous one's tail
-        finds it still built (a least-recently-used cache scanned in one order every time
-        misses on every tile once it holds fewer than the scan). What a query returns does not
-        depend on the order."""
-        want = set(int(k) for k in tiles)
-        held = [k for k in reversed(self.cache) if k in want]
-        kept = set(held)
-        return held + [int(k) for k in tiles if int(k) not in kept]
-
     def rays_per_tile(self, origins, directions, reach, pad: float):
         """[(tile, ray indices)] of the tiles each ray (unit directions, lengths ``reach``, inf
-        for unbounded) may meet, boxes padded by ``pad`` (m); tiles in index order."""
+        for unbounded) may meet, boxes padded by ``pad`` (m); tiles in index order
+        (:meth:`TileCache.rays_per_tile` visits them in the cache's order)."""
         o = np.ascontiguousarray(origins, float)
         u = np.ascontiguousarray(directions, float)
         r = np.ascontiguousarray(np.broadcast_to(np.asarray(reach, float), (o.shape[0],)))
@@ -370,7 +338,7 @@ class FloorTiles:
                 break
             cap = k
         edges = np.concatenate([[0], np.cumsum(counts)])
-        return [(t, idx[edges[t]:edges[t + 1]]) for t in self.visit_order(np.flatnonzero(counts))]
+        return [(int(t), idx[edges[t]:edges[t + 1]]) for t in np.flatnonzero(counts)]
 
     def tiles_in_window(self, window) -> np.ndarray:
         """Tiles whose bounding sphere reaches into an angular window (origin (3,), rotation
@@ -393,16 +361,20 @@ class FloorTiles:
         el_ok = (el + ang >= el_lo) & (el - ang <= el_hi)
         return np.flatnonzero(inside | (az_ok & el_ok))
 
-    def specular_points(self, sources_m, receivers_m, *, window=None, **kw):
+    def specular_points(self, sources_m, receivers_m, *, cache: TileCache | None = None,
+                        window=None, **kw):
         """:func:`acoustics.paths.specular.specular_points` over the floor, a tile at a time:
         the tiles the window reaches (all without one), facets numbered in the whole floor,
         rows sorted by pair then path length, a point found in two tiles (on their shared
-        edge) kept once, as the whole mesh's search keeps it."""
+        edge) kept once, as the whole mesh's search keeps it. ``cache``: the run's
+        :class:`TileCache` of this floor (None: tiles built for this query only). The rows do
+        not depend on what the cache holds."""
         from acoustics.paths.specular import SpecularPoints, specular_points
         from acoustics.paths.specular_search import search_blocks
+        cache = TileCache(self) if cache is None else cache
         parts = []
-        for k in self.visit_order(self.tiles_in_window(window)):
-            t = self.tile(k)
+        for k in cache.visit_order(self.tiles_in_window(window)):
+            t = cache.tile(k)
             if t.blocks is None and kw.get("cull", True):
                 t.blocks = search_blocks(t.vertices, t.faces, t.normals)
             sp = specular_points(t.vertices, t.faces, t.normals, sources_m, receivers_m,
@@ -427,3 +399,67 @@ class FloorTiles:
                 keep.append(i)
         sel = order[np.asarray(keep, int)]
         return SpecularPoints(**{n: cols[n][sel] for n in names})
+
+
+class TileCache:
+    """The built tiles of one :class:`FloorTiles`, least recently used evicted once they would
+    exceed the floor's ``effects.floor_tiles.memory_mb``: what a run fills as it queries the
+    floor, owned by the run (its ray caster), never by the frozen floor.
+
+    Parameters
+    ----------
+    floor : FloorTiles
+
+    Attributes
+    ----------
+    cached_bytes, peak_cached_bytes : float
+        Bytes of the tiles held now, and at most so far (never above ``memory_bytes``).
+    builds : int
+        Tiles built so far (a tile evicted and needed again is built again).
+    """
+
+    def __init__(self, floor: FloorTiles):
+        self.floor = floor
+        self.memory_bytes = floor.memory_bytes
+        self.tiles: OrderedDict[int, Tile] = OrderedDict()
+        self.cached_bytes = 0.0
+        self.peak_cached_bytes = 0.0
+        self.builds = 0
+
+    def __len__(self) -> int:
+        return len(self.tiles)
+
+    def tile(self, k: int) -> Tile:
+        """Tile k, held or built (evicting the least recently used tiles first)."""
+        k = int(k)
+        t = self.tiles.get(k)
+        if t is not None:
+            self.tiles.move_to_end(k)
+            return t
+        f = self.floor
+        need = tile_bytes_of(int(f.face_start[k + 1] - f.face_start[k]))
+        while self.tiles and self.cached_bytes + need > self.memory_bytes:
+            _, old = self.tiles.popitem(last=False)
+            self.cached_bytes -= old.nbytes
+        t = f.build(k)
+        self.builds += 1
+        self.tiles[k] = t
+        self.cached_bytes += t.nbytes
+        self.peak_cached_bytes = max(self.peak_cached_bytes, self.cached_bytes)
+        return t
+
+    def visit_order(self, tiles) -> list:
+        """``tiles`` (indices) in the order to visit them: those held, most recently used
+        first, then the others in index order — a scan that follows the previous one's tail
+        finds it still built (a least-recently-used cache scanned in one order every time
+        misses on every tile once it holds fewer than the scan). What a query returns does not
+        depend on the order."""
+        want = set(int(k) for k in tiles)
+        held = [k for k in reversed(self.tiles) if k in want]
+        kept = set(held)
+        return held + [int(k) for k in tiles if int(k) not in kept]
+
+    def rays_per_tile(self, origins, directions, reach, pad: float):
+        """:meth:`FloorTiles.rays_per_tile`, the tiles in :meth:`visit_order`."""
+        per_tile = dict(self.floor.rays_per_tile(origins, directions, reach, pad))
+        return [(k, per_tile[k]) for k in self.visit_order(list(per_tile))]

@@ -7,7 +7,8 @@ into small frozen values (:class:`Sampling`, :class:`Noise`, :class:`Effects`,
 :class:`Reverberation`, the targets' :class:`~acoustics.targets.draw.Targets`, the boundary and
 mesh-target meshes of :class:`Rays`, their file paths resolved against the scene file's folder).
 Nothing below takes a Scene, and nothing mutates a Setup: what a run fills as it goes (the ray
-caster, a moving sea's time, the rays cast, cached reverberation rays) lives in the run's
+caster, a tiled floor's built tiles, a moving sea's time, the rays cast, cached
+reverberation rays) lives in the run's
 :class:`RunCache`.
 
 Geometry-only results (transmit beamwidths, the calibration) are cached per process by the
@@ -164,8 +165,9 @@ class Setup:
 
 class RunCache:
     """What one run fills as it goes, kept out of the frozen :class:`Setup`: the ray scene (its
-    caster and the rays cast per purpose, a moving sea's time, the reverberation rays and lit
-    facets it keeps) and, for a moving sonar among meshes of both frames, the ray scene rebuilt
+    caster and the rays cast per purpose, the built tiles of a tiled floor in the caster's
+    :class:`~acoustics.paths.tiles.TileCache`, a moving sea's time, the reverberation rays and
+    lit facets it keeps) and, for a moving sonar among meshes of both frames, the ray scene rebuilt
     for the last pose.
 
     Parameters
