@@ -459,9 +459,10 @@ class RayScene:
         if window_extent is not None and not before:   # a fan: only blocks it reaches, seen from start
             window = (np.asarray(start, float), np.eye(3) if view is None else view.rotation, window_extent)
         from acoustics.paths.tiles import is_tiled
-        search = partial(sm.mesh.specular_points, cache=self.caster.tile_cache(ci)) \
-            if is_tiled(sm.mesh) else partial(   # a tile at a time, in the run's cache of tiles
-                specular_points, sm.mesh.vertices, sm.mesh.faces, self._normals(ci))
+        if is_tiled(sm.mesh):      # a tile at a time, in the run's cache of tiles (the caster's)
+            search = partial(sm.mesh.specular_points, cache=self.caster.tile_cache(ci))
+        else:
+            search = partial(specular_points, sm.mesh.vertices, sm.mesh.faces, self._normals(ci))
         sp = search(np.broadcast_to(s_img, (n, 3)), e_img,
                     newton_iterations=spec.newton_iterations,
                     focusing_limit_db=spec.focusing_limit_db, height_field=exact,
