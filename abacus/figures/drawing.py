@@ -135,6 +135,11 @@ def _start_worker() -> None:
     # job comes (while the command simulates): ≈ 0.4 s less on the run's path after it
     from abacus.figures.plots import prepare
     prepare()
+    # what is loaded now lives as long as the worker: out of the collector's sight, a figure's
+    # garbage collections do not walk it again (≈ 5 % of the drawing, measured on the run's jobs)
+    import gc
+    gc.collect()
+    gc.freeze()
 
 
 def _end_with_parent() -> None:
