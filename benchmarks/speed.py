@@ -639,7 +639,7 @@ def end_to_end():
               "second core; the collector frozen at exit, `abacus.cli.app.main`), so it can come in "
               "below. The compiled kernels' loading (numba, in *simulate*) comes on top.\n"
             + f"\n\n`abacus run` draws its figures through `abacus.figures.drawing`: here in {pool} "
-              "(start method \"spawn\"), which imports matplotlib while the run imports and "
+              "(start method \"spawn\"), which gets ready to draw (imports matplotlib and the figures' modules, loads the font and the PNG encoder: `abacus.figures.plots.prepare`) while the run imports and "
               "simulates, draws the first ping's images while it processes and the detection "
               "and count figures while it writes; `abacus.cli.main(argv)` called by another program "
               "draws them in its own process (a \"spawn\" worker would run the calling script "
