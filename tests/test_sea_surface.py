@@ -590,6 +590,7 @@ def test_the_sea_bound_finds_what_the_exhaustive_search_finds_and_no_tighter_one
     lie from its facet's): a bound, so the same points as every facet (a steep two-wave swell on
     a coarse 1 m mesh, 200 targets). The check can fail: the same bound with its spheres cut to
     a tenth loses bounce points."""
+    import acoustics.paths.specular_field as field_bound
     import acoustics.paths.specular_search as search
     s = swell(components=[(0.4, 12.0, 20.0, 0.0), (0.1, 5.0, -40.0, 30.0)], size_m=(40.0, 30.0),
               resolution_m=1.0, center_m=(18.0, 0.0))
@@ -610,8 +611,9 @@ def test_the_sea_bound_finds_what_the_exhaustive_search_finds_and_no_tighter_one
     full = specular_points(m.vertices, m.faces, n, src, tgt, height_field=field, cull=False)
     fast = specular_points(m.vertices, m.faces, n, src, tgt, height_field=bounded)
     assert len(full) > 300 and key(fast) == key(full)
-    reach = search._field_reach
-    monkeypatch.setattr(search, "_field_reach", lambda *args: (reach(*args)[0] * 0.1, reach(*args)[1]))
+    grown = field_bound.height_field_blocks
+    monkeypatch.setattr(search, "height_field_blocks",
+                        lambda *args: (grown(*args)[0] * 0.1, grown(*args)[1]))
     search._FIELD_CACHE.clear()
     too_tight = specular_points(m.vertices, m.faces, n, src, tgt, height_field=bounded)
     search._FIELD_CACHE.clear()
