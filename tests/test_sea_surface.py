@@ -582,3 +582,39 @@ def test_the_tree_search_finds_every_glint_of_a_rough_floor():
         return sorted(zip(pairs[sp.pair].tolist(), np.round(sp.point_m, 7).tolist()))
 
     assert len(full) > 40 and key(fast, order) == key(full, np.arange(40))
+
+
+def test_the_sea_bound_finds_what_the_exhaustive_search_finds_and_no_tighter_one_would(monkeypatch):
+    """On a moving sea whose bounce points are refined on the exact height field, the blocks
+    are skipped by the tight bound grown by the field's curvature (how far a refined point may
+    lie from its facet's): a bound, so the same points as every facet (a steep two-wave swell on
+    a coarse 1 m mesh, 200 targets). The check can fail: the same bound with its spheres cut to
+    a tenth loses bounce points."""
+    import acoustics.paths.specular_field as field_bound
+    import acoustics.paths.specular_search as search
+    s = swell(components=[(0.4, 12.0, 20.0, 0.0), (0.1, 5.0, -40.0, 30.0)], size_m=(40.0, 30.0),
+              resolution_m=1.0, center_m=(18.0, 0.0))
+    v, n = s.grid(3.0)
+    m = _grid_mesh(s.x_m, s.y_m, v[:, 2].reshape(s.y_m.size, s.x_m.size))
+    k = np.linalg.norm(s.k_m, axis=1)
+    a = np.abs(s.amplitude_m)
+    field = (lambda x, y: s.height(x, y, 3.0), np.eye(4))
+    bounded = field + ((float(a @ k), float(a @ (k * k))),)
+    rng = np.random.default_rng(3)
+    tgt = np.column_stack([rng.uniform(2, 36, 200), rng.uniform(-12, 12, 200),
+                           rng.uniform(0.5, 10, 200)])
+    src = np.broadcast_to([0.0, 0.0, 2.0], tgt.shape)
+
+    def key(sp):
+        return sorted(zip(sp.pair.tolist(), np.round(sp.point_m, 7).tolist()))
+
+    full = specular_points(m.vertices, m.faces, n, src, tgt, height_field=field, cull=False)
+    fast = specular_points(m.vertices, m.faces, n, src, tgt, height_field=bounded)
+    assert len(full) > 300 and key(fast) == key(full)
+    grown = field_bound.height_field_blocks
+    monkeypatch.setattr(search, "height_field_blocks",
+                        lambda *args: (grown(*args)[0] * 0.1, grown(*args)[1]))
+    search._FIELD_CACHE.clear()
+    too_tight = specular_points(m.vertices, m.faces, n, src, tgt, height_field=bounded)
+    search._FIELD_CACHE.clear()
+    assert len(too_tight) < len(full)

@@ -454,7 +454,11 @@ class RayScene:
         e_img = self._mirror_all(p, tuple(reversed(after)))                  # targets, seen from X
         exact = None
         if sm.moving and spec.exact_surface:
-            exact = (lambda x, y, _s=sm.surface, _t=sm.time_s: _s.height(x, y, _t), sm.placement)
+            # its slope and curvature bound (Σ a|k|, Σ a|k|²): the search's tight block bound
+            k = np.linalg.norm(np.asarray(sm.surface.k_m, float), axis=1)
+            a = np.abs(np.asarray(sm.surface.amplitude_m, float))
+            exact = (lambda x, y, _s=sm.surface, _t=sm.time_s: _s.height(x, y, _t), sm.placement,
+                     (float(a @ k), float(a @ (k * k))))
         window = None
         if window_extent is not None and not before:   # a fan: only blocks it reaches, seen from start
             window = (np.asarray(start, float), np.eye(3) if view is None else view.rotation, window_extent)

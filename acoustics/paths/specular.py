@@ -359,7 +359,11 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
         The exact surface the mesh samples, as ``z, z_x, z_y, z_xx, z_xy, z_yy = f(x, y)`` in
         its own frame, and the rigid placement of that frame in the mesh's. Bounce points are
         then refined, and their levels taken, on it (the mesh only finds them and, with its
-        facets, decides visibility): exact at any mesh resolution.
+        facets, decides visibility): exact at any mesh resolution. A third item, (slope,
+        curvature): bounds of the field's |∇z| and of its Hessian's spectral norm (1/m; for a
+        sum of waves Σ a|k| and Σ a|k|²): the blocks are then skipped by the tight bound grown
+        by how far a refined point may lie from its facet (a bound: the points of the
+        exhaustive search), else by the loose 0.1 rad margin.
     blocks : tuple, optional
         The mesh's :func:`acoustics.paths.specular_search.search_blocks` (blocks, unit
         normals), kept by the caller (a floor's tiles keep theirs, acoustics/paths/tiles.py);
@@ -381,15 +385,27 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
     if not (np.all(np.isfinite(S)) and np.all(np.isfinite(P))):
         raise ValueError("specular_points: sources and receivers must be finite")
     rot = None
+    bound = None
     if height_field is not None:
-        f_hf, place = height_field
+        f_hf, place = height_field[:2]
         rot, shift = np.asarray(place, float)[:3, :3], np.asarray(place, float)[:3, 3]
         if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-9):
             rot = None                        # scaled: the mesh is the best we have
+        elif len(height_field) > 2 and height_field[2] is not None and cull and newton_iterations > 0:
+            # the field's slope and curvature bound how far a refined point may be from its
+            # facet's, in place and in normal: the tight block bound, grown by that
+            slope, curvature = (float(x) for x in height_field[2])
+            Vo = (V - shift) @ rot
+            z, z_x, z_y = f_hf(Vo[:, 0], Vo[:, 1])[:3]
+            n_field = _unit(np.column_stack([-z_x, -z_y, np.ones_like(z_x)])) @ rot.T
+            off = float(np.max(np.abs(z - Vo[:, 2]))) if len(z) else 0.0
+            if np.isfinite(off) and np.all(np.isfinite(n_field)):
+                bound = (np.ascontiguousarray(n_field), off, slope, curvature, rot[:, 2])
     # the tight bound holds for points refined on the mesh's smooth surface and tested
     N, pair, face, st = candidate_facets(V, F, normals, S, P, tolerance=search_tolerance,
                                          cull=cull, window=window, blocks=blocks,
-                                         tight=rot is None and newton_iterations > 0)
+                                         tight=rot is None and newton_iterations > 0,
+                                         height_bound=bound)
     Sq, Pq = S[pair], P[pair]
     if rot is not None:
         # Newton on the exact surface in its own frame, from the facet's estimate

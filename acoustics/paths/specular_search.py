@@ -16,6 +16,8 @@ import threading
 import numba as nb
 import numpy as np
 
+from acoustics.paths.specular_field import height_field_blocks
+
 __all__ = ["candidate_facets", "search_blocks", "unit_rows"]
 
 
@@ -29,7 +31,8 @@ _unit = unit_rows
 
 
 def candidate_facets(vertices, faces, normals, sources_m, receivers_m, *, tolerance: float,
-                     cull: bool = True, window=None, tight: bool = True, blocks=None):
+                     cull: bool = True, window=None, tight: bool = True, blocks=None,
+                     height_bound=None):
     """Candidate bounce facets of every pair.
 
     Parameters
@@ -54,6 +57,12 @@ def candidate_facets(vertices, faces, normals, sources_m, receivers_m, *, tolera
         The mesh's :func:`search_blocks` (blocks, unit normals), kept by the caller (a floor's
         tiles keep theirs, acoustics/paths/tiles.py); default: made here and cached for the
         last meshes searched.
+    height_bound : (ndarray (n_v, 3), float, float, float, ndarray (3,)), optional
+        Candidates refined on an exact height field (``specular_points``' ``height_field``):
+        the field's unit normals at the vertices (mesh frame), the most the vertices lie off
+        it (m), its largest slope and its largest curvature (the spectral norm of its Hessian,
+        1/m), its z axis in the mesh's frame. The blocks are then skipped by the tight bound, grown by how far a refined point
+        may lie from its facet (acoustics/paths/specular_field.py); ``tight`` is ignored.
 
     Returns
     -------
@@ -80,6 +89,9 @@ def candidate_facets(vertices, faces, normals, sources_m, receivers_m, *, tolera
         blocks, N = blocks                  # the caller's, with the unit normals they were made from
     else:
         blocks, N = _blocks_of(V, F, normals)
+    if height_bound is not None:
+        blocks = _field_blocks_of(V, F, blocks, *height_bound)
+        tight = True
     allowed = np.ones(blocks[1].size - 1, np.uint8)
     if window is not None:
         allowed = _window_blocks(blocks, window)
@@ -612,6 +624,38 @@ def _tree(centre, radius, axis, spread, fan: int = 8):
     first = np.concatenate(first + [ids[:1]]).astype(np.int64)
     return (np.concatenate(cen), np.concatenate(rad), np.ascontiguousarray(np.concatenate(ax)),
             np.concatenate(spr), first, ids)
+
+
+#: the last grown blocks (the blocks they grew, a digest of the field at the vertices, the
+#: grown blocks): a ping searches one sea from the transmitter and from the receiver
+_FIELD_CACHE: list = []
+
+
+def _field_blocks_of(V, F, blocks, field_normals, off_m, slope, curvature_per_m, up):
+    """The blocks grown by :func:`acoustics.paths.specular_field.height_field_blocks` (and their
+    tree), kept for the last two (blocks, field) it was asked for
+    (arguments as ``height_field_blocks``'; ``up``: the field's z axis in the mesh's frame).
+
+    Returns
+    -------
+    tuple
+        The grown blocks, for :func:`candidate_facets`."""
+    n_field = np.ascontiguousarray(field_normals, dtype=float)
+    up = np.asarray(up, float)
+    key = (hash(n_field.tobytes()), n_field.shape, float(off_m), float(slope),
+           float(curvature_per_m), tuple(up.tolist()))
+    with _BLOCK_LOCK:
+        for entry in _FIELD_CACHE:
+            if entry[0] is blocks and entry[1] == key and np.array_equal(entry[2], n_field):
+                return entry[3]
+    tight_radius, spread = height_field_blocks(V, F, blocks, n_field, off_m, slope,
+                                               curvature_per_m, up)
+    grown = (*blocks[:5], spread, *blocks[6:9], tight_radius,
+             *_tree(blocks[2], tight_radius, blocks[4], spread))
+    with _BLOCK_LOCK:
+        _FIELD_CACHE.insert(0, (blocks, key, n_field, grown))
+        del _FIELD_CACHE[2:]
+    return grown
 
 
 #: the blocks of the last few meshes searched, keyed by where their arrays live, their shapes
