@@ -227,8 +227,7 @@ def _add_tracking(ds: xr.Dataset, tracked: dict, runs: list) -> None:
             "long_name": long[k], "units": "m" if k == "motp" else "1",
             "nan_means": "no truth, no passage, or no 3-D positions in this run"})
     vals = []
-    for i in range(v.shape[0]):
-        c, t = tracked["counted_passages"][i], tracked["true_passages"][i]
+    for c, t in zip(tracked["counted_passages"], tracked["true_passages"]):
         ok = np.isfinite(c) & np.isfinite(t)
         vals.append(nmae(c[ok], t[ok]) if ok.any() else np.nan)
     ds["track_count_nmae"] = xr.DataArray(np.array(vals, float), dims="setting", attrs={

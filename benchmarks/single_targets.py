@@ -38,7 +38,6 @@ sys.path.insert(0, str(ROOT))
 
 import acoustics  # noqa: E402
 from processing.backscatter.calibration import calibration_of  # noqa: E402
-from processing.backscatter.echo_criteria import RULES  # noqa: E402
 from processing.backscatter.target_strength import beam_pattern_of, target_strength_db  # noqa: E402
 from processing.pipeline import RecordChain  # noqa: E402
 

@@ -32,23 +32,30 @@ def _scatterers(n, rng):
     return p, q
 
 
-@section
-def synthesis():
-    import numba
-
+def _echo_model_32():
+    """(EchoModel, synthesize's keywords): the preset transmitter against both receive
+    subarrays (32 elements) at the preset's pulse and sampling. (The synthesis_ab child repeats
+    this in its own text: it runs against the code before issue 31, whose speed.py lacks it.)"""
     from acoustics.medium import Medium
     from acoustics.sonar.arrays import ElementArray
     from acoustics.sonar.build import preset_sonar
     from acoustics.sonar.pulse import Pulse
     from acoustics.synthesis.arrivals import EchoModel
-    from acoustics.synthesis.synthesize import synthesize
-
     son = preset_sonar()
     subs = son.receiver.subarrays
     rx32 = ElementArray.concatenate([subs["A"], subs["B"]], "32 elements")
     model = EchoModel(son.transmitter, rx32, Medium(preset.SOUND_SPEED_M_S, 0.1), preset.CENTER_FREQUENCY_HZ,
                       preset.ADC_SCALE_COUNTS)
-    kw = dict(pulse=Pulse(), rate_hz=preset.SAMPLE_RATE_HZ, n_samples=preset.SAMPLES_PER_PING)
+    return model, dict(pulse=Pulse(), rate_hz=preset.SAMPLE_RATE_HZ, n_samples=preset.SAMPLES_PER_PING)
+
+
+@section
+def synthesis():
+    import numba
+
+    from acoustics.synthesis.synthesize import synthesize
+
+    model, kw = _echo_model_32()
     import os
     rng = np.random.default_rng(2)
     n_threads = numba.get_num_threads()
@@ -865,7 +872,6 @@ def _hard_limits(scene_path):
     """The machine's cost limits in this run: raw Embree rays/s on the hard survey's meshes
     (the transmit fan, float32, one thread and two) and the synthesis kernel's pairs/s at
     10⁵ scatterers x 32 elements (the default accuracy, all threads)."""
-    import time
     import warnings
     from concurrent.futures import ThreadPoolExecutor
 
@@ -874,13 +880,8 @@ def _hard_limits(scene_path):
     from embreex.mesh_construction import TriangleMesh
 
     from acoustics import SceneWarning, load_scene
-    from acoustics.medium import Medium
     from acoustics.simulation.run import make_setup
     from acoustics.simulation.setup import RunCache
-    from acoustics.sonar.arrays import ElementArray
-    from acoustics.sonar.build import preset_sonar
-    from acoustics.sonar.pulse import Pulse
-    from acoustics.synthesis.arrivals import EchoModel
     from acoustics.synthesis.synthesize import synthesize
 
     with warnings.catch_warnings():
@@ -906,12 +907,7 @@ def _hard_limits(scene_path):
         lambda: list(pool.map(lambda s: raw.run(o32[s], d32[s], query="INTERSECT", output=1),
                               halves))], repeat=5)
     pool.shutdown()
-    son = preset_sonar()
-    subs = son.receiver.subarrays
-    rx32 = ElementArray.concatenate([subs["A"], subs["B"]], "32 elements")
-    model = EchoModel(son.transmitter, rx32, Medium(preset.SOUND_SPEED_M_S, 0.1),
-                      preset.CENTER_FREQUENCY_HZ, preset.ADC_SCALE_COUNTS)
-    kw = dict(pulse=Pulse(), rate_hz=preset.SAMPLE_RATE_HZ, n_samples=preset.SAMPLES_PER_PING)
+    model, kw = _echo_model_32()
     p5, q5 = _scatterers(100_000, np.random.default_rng(2))
     synthesize(model, p5[:2], q5[:2], **kw)
     t_syn = best_time(lambda: synthesize(model, p5, q5, **kw), repeat=5)

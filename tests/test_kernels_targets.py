@@ -129,7 +129,7 @@ def test_bounded_rayleigh_matches_the_truncated_law():
     son = preset_sonar()
     rho = draw_targets(make_setup(s).targets, 0, son.pose).rho_m
     assert rho.min() >= 0.25 and rho.max() <= 1.25
-    law = stats.truncnorm  # noqa: F841  (scipy has no truncated Rayleigh: build its CDF)
+    # scipy has no truncated Rayleigh: its CDF built from the Rayleigh's
     f = stats.rayleigh(scale=0.5).cdf
     cdf = lambda x: (f(x) - f(0.25)) / (f(1.25) - f(0.25))  # noqa: E731
     assert stats.kstest(rho, cdf).pvalue > 0.01

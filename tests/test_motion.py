@@ -10,7 +10,6 @@ import pytest
 import acoustics
 import processing
 from acoustics.scene import SceneWarning, scene_from_text
-from acoustics.targets.schools import nearest_neighbour_m
 
 QUIET = "name: motion\nmedium: {sound_speed_m_s: 1530}\n"
 

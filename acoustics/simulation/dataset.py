@@ -121,7 +121,6 @@ def build_tree(scene, setup, pings, samples, clipped, truth, log, seed, *,
     s = scene.sampling
     ping_time = _ping_times(scene, pings)
     rx = sonar.receiver
-    el = rx.elements
     chan_names = np.array([f"{sub}{idx}" for sub, idx in rx.channels])
     now = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()
 

@@ -82,12 +82,7 @@ def nominal_echo_length_m(response, rate_hz: float, sound_speed_m_s: float, *, l
     -------
     float
     """
-    spec = np.asarray(response, float)
-    n = spec.size
-    big = np.zeros(n * upsample)
-    h = n // 2
-    big[:h], big[n * upsample - (n - h):] = spec[:h], spec[h:]
-    env = np.fft.fftshift(np.abs(np.fft.ifft(big)))
+    env = np.abs(_fine_pulse(np.asarray(response, float), upsample))
     lo, hi = _crossings(env, int(np.argmax(env)), 10.0 ** (-level_db / 20.0))
     return float((hi - lo) / (rate_hz * upsample) * sound_speed_m_s / 2.0)
 
@@ -128,11 +123,7 @@ def moving_echo_range_phase_deg(replica, filter_spectrum, rate_hz: float, dopple
     h = np.asarray(filter_spectrum, complex)
     n = h.size
     t_s = np.arange(rep.size) / float(rate_hz)
-    y = np.fft.fft(rep * np.exp(2j * np.pi * float(doppler_hz) * t_s), n) * h
-    big = np.zeros(n * upsample, complex)
-    half = n // 2
-    big[:half], big[n * upsample - (n - half):] = y[:half], y[half:]
-    out = np.fft.fftshift(np.fft.ifft(big))
+    out = _fine_pulse(np.fft.fft(rep * np.exp(2j * np.pi * float(doppler_hz) * t_s), n) * h, upsample)
     env = np.abs(out)
     peak = int(np.argmax(env))
     lo, hi = _crossings(env, peak, 10.0 ** (-level_db / 20.0))
@@ -142,6 +133,16 @@ def moving_echo_range_phase_deg(replica, filter_spectrum, rate_hz: float, dopple
     if rows.size < 2:
         return 0.0
     return float(np.degrees(np.std(np.unwrap(np.angle(out[rows] * np.conj(out[peak]))))))
+
+
+def _fine_pulse(spectrum, upsample: int) -> np.ndarray:
+    """The compressed pulse of a spectrum on the filter's FFT grid, on a grid ``upsample`` times
+    finer (zero-padded between its positive and negative frequencies), its peak lag centred."""
+    n = spectrum.size
+    big = np.zeros(n * upsample, spectrum.dtype)
+    h = n // 2
+    big[:h], big[n * upsample - (n - h):] = spectrum[:h], spectrum[h:]
+    return np.fft.fftshift(np.fft.ifft(big))
 
 
 def _crossings(env, i, fraction):

@@ -28,7 +28,8 @@ __all__ = ["ROOT_GROUP", "ENVIRONMENT_GROUP", "PLATFORM_GROUP", "PROVENANCE_GROU
            "BEAM_GROUP_NAME", "ELEMENT_GROUP", "TRUTH_GROUP", "ARRIVALS_GROUP", "PROCESSING_GROUP", "DETECTIONS_GROUP",
            "COUNTS_GROUP", "SV_GROUP", "TRACKS_GROUP", "LABELS_GROUP", "PRODUCT_GROUPS", "LEGACY_ELEMENT_GROUP",
            "LEGACY_TRUTH_GROUP", "ECHOPYPE_GROUPS", "FLAT_HOST", "FLAT_MAP_ATTR", "flat_name", "CONVENTIONS", "CHANNEL", "KINDS", "Variable", "Attribute", "Group",
-           "GROUPS", "group_spec", "node_path", "markdown", "MARKDOWN_BEGIN", "MARKDOWN_END"]
+           "GROUPS", "group_spec", "node_path", "markdown", "attribute_table", "markdown_main", "MARKDOWN_BEGIN",
+           "MARKDOWN_END"]
 
 # ------------------------------------------------------------------ group paths
 ROOT_GROUP = "/"
@@ -592,23 +593,35 @@ def markdown() -> str:
             continue
         for i, r in enumerate(rows):
             lines.append("| " + " | ".join([f"`{g.path}`" if i == 0 else ""] + r) + " |")
-    lines += ["", "| group | attribute | value | mandatory | meaning |", "|---|---|---|---|---|"]
-    for g in GROUPS.values():
+    lines += ["", *attribute_table(GROUPS.values()), "", MARKDOWN_END]
+    return "\n".join(lines) + "\n"
+
+
+def attribute_table(groups) -> list:
+    """The markdown rows (header included) of the attributes of ``groups`` (objects with
+    ``path`` and ``attributes`` of :class:`Attribute`): one table for either convention."""
+    lines = ["| group | attribute | value | mandatory | meaning |", "|---|---|---|---|---|"]
+    for g in groups:
         for i, a in enumerate(g.attributes):
             lines.append("| " + " | ".join([f"`{g.path}`" if i == 0 else "", f"`{a.name}`",
                                             a.value or "", "yes" if a.mandatory else "", a.doc]) + " |")
-    lines += ["", MARKDOWN_END]
-    return "\n".join(lines) + "\n"
+    return lines
+
+
+def markdown_main(module: str, render, argv=None) -> int:
+    """``python -m <module> --markdown``: print ``render()`` (a contract's docs/dataset.md
+    tables); exit status 2 with a usage line otherwise."""
+    args = sys.argv[1:] if argv is None else list(argv)
+    if args != ["--markdown"]:
+        print(f"usage: python -m {module} --markdown", file=sys.stderr)
+        return 2
+    sys.stdout.write(render())
+    return 0
 
 
 def main(argv=None) -> int:
     """``python -m processing.base.contract --markdown``: print the tables of docs/dataset.md."""
-    args = sys.argv[1:] if argv is None else list(argv)
-    if args != ["--markdown"]:
-        print("usage: python -m processing.base.contract --markdown", file=sys.stderr)
-        return 2
-    sys.stdout.write(markdown())
-    return 0
+    return markdown_main("processing.base.contract", markdown, argv)
 
 
 if __name__ == "__main__":

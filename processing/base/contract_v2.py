@@ -26,10 +26,9 @@ Layout choices (docs/dataset.md, "SONAR-netCDF4 2.0"):
 """
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
 
-from processing.base.contract import Attribute
+from processing.base.contract import Attribute, attribute_table, markdown_main
 
 __all__ = ["CONVENTIONS_V2", "VERSION", "NcType", "NcVar", "NcGroup", "GROUPS_V2", "group_v2",
            "BEAM_GROUP_V2", "SINGLE_TARGET_GROUP", "GRID_GROUP", "ROOT", "ENVIRONMENT", "PLATFORM",
@@ -526,11 +525,7 @@ def markdown() -> str:
             meaning = (v.doc or v.long_name or "").replace("|", "\\|")
             lines.append("| " + " | ".join([f"`{g.path}`" if i == 0 else "", f"`{v.name}`", v.type,
                                             ", ".join(v.dims), v.units or "", v.obligation, meaning]) + " |")
-    lines += ["", "| group | attribute | value | mandatory | meaning |", "|---|---|---|---|---|"]
-    for g in GROUPS_V2.values():
-        for i, a in enumerate(g.attributes):
-            lines.append("| " + " | ".join([f"`{g.path}`" if i == 0 else "", f"`{a.name}`", a.value or "",
-                                            "yes" if a.mandatory else "", a.doc]) + " |")
+    lines += ["", *attribute_table(GROUPS_V2.values())]
     lines += ["", "| group | type | kind | values |", "|---|---|---|---|"]
     for g in GROUPS_V2.values():
         for t in g.types:
@@ -542,12 +537,7 @@ def markdown() -> str:
 
 def main(argv=None) -> int:
     """``python -m processing.base.contract_v2 --markdown``: print the tables of docs/dataset.md."""
-    args = sys.argv[1:] if argv is None else list(argv)
-    if args != ["--markdown"]:
-        print("usage: python -m processing.base.contract_v2 --markdown", file=sys.stderr)
-        return 2
-    sys.stdout.write(markdown())
-    return 0
+    return markdown_main("processing.base.contract_v2", markdown, argv)
 
 
 if __name__ == "__main__":

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from processing.base.contract import ELEMENT_GROUP, ENVIRONMENT_GROUP, SONAR_GROUP, TRUTH_GROUP
+from processing.base.contract import ELEMENT_GROUP, ENVIRONMENT_GROUP, TRUTH_GROUP
 from processing.base.dataset import SIMRAD_MODELS, DatasetError, echosounder_model, group_of
 
 __all__ = ["SIMRAD_MODELS", "echosounder_model", "check_echosounder", "PowerRecord", "read_power_record",
