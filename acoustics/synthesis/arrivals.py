@@ -32,6 +32,7 @@ import numpy as np
 from acoustics.sonar.arrays import ElementArray
 from acoustics.sonar.directivity import array_response, element_directivity
 from acoustics.synthesis.kernels import EXP_SMALL_LIMIT, cis_cycles, exp_small, sincos
+from acoustics.synthesis.simd import WIDTH, spread8
 from acoustics.medium import Medium
 from acoustics.sonar import preset
 
@@ -250,6 +251,27 @@ def _add_split(rre, rim, base, ar, ai, k):
         sim[j] += ai * k[j]
 
 
+@nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
+def _add_block8(rre, rim, buf, n, t0, fs, q0, tflat, dflat, taps, n_phase, lo, hi):
+    """:func:`_tap_kernel` and :func:`_add_split` for the ``n`` arrivals of a block (``buf`` as
+    :func:`_pair_block` writes it), eight taps a vector step (:func:`spread8`; L a multiple of
+    8): the same products and sums, the kernel never stored."""
+    half = taps // 2
+    for i in range(n):
+        mu = (buf[2 * _BLOCK + i] - t0) * fs + q0
+        if mu < lo or mu >= hi:
+            continue
+        m0 = int(mu)
+        x = (mu - m0) * n_phase
+        r = min(int(x), n_phase - 1)
+        w = x - r
+        base = m0 - half + 1
+        ar = buf[i]
+        ai = buf[_BLOCK + i]
+        for j in range(0, taps, WIDTH):
+            spread8(tflat, dflat, r * taps + j, w, rre, rim, base + j, ar, ai)
+
+
 @nb.njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
 def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, inv_lam, alpha,
             small_abs, spreading, baffle, table, dtable, t0, fs, q0, n_out, n_alloc):
@@ -281,6 +303,10 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
     # a fifth of the time: the same sums, in the same order); each channel sums its real and
     # imaginary parts in two real trains (contiguous multiply-adds), joined at the end
     taps = table.shape[1]
+    n_phase = dtable.shape[0]
+    vec = taps % WIDTH == 0
+    tflat = table.ravel()
+    dflat = dtable.ravel()
     for n in nb.prange(n_r):
         row = out[n]
         cx, cy, cz = c[n, 0], c[n, 1], c[n, 2]
@@ -295,6 +321,9 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
             _pair_block(px[s0:s1], py[s0:s1], pz[s0:s1], fre[s0:s1], fim[s0:s1], r1[s0:s1], cx, cy,
                         cz, ex0, ex1, ey0, ey1, kw, kh, inv_c, inv_lam, alpha, small_abs,
                         spreading, baffle, buf)
+            if vec:
+                _add_block8(rre, rim, buf, s1 - s0, t0, fs, q0, tflat, dflat, taps, n_phase, lo, hi)
+                continue
             for i in range(s1 - s0):
                 base = _tap_kernel(buf[2 * _BLOCK + i], t0, fs, q0, table, dtable, lo, hi, k)
                 if base >= 0:
