@@ -66,6 +66,7 @@ def _piston(dx, dy, dz, inv_r, ex0, ex1, ey0, ey1, hkw, hkh, baffle):
 
 
 _BLOCK = 256  # scatterers per vectorised block
+_GROUP = 4  # channels whose arrivals one thread interleaves
 
 
 @nb.njit(cache=True, fastmath=True, error_model="numpy")
@@ -304,9 +305,48 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
     # imaginary parts in two real trains (contiguous multiply-adds), joined at the end
     taps = table.shape[1]
     n_phase = dtable.shape[0]
-    vec = taps % WIDTH == 0
     tflat = table.ravel()
     dflat = dtable.ravel()
+    if taps % WIDTH == 0:
+        # _GROUP channels a thread, their arrivals taken in turns: an arrival's taps are not
+        # loaded straight after the previous arrival of the same channel stored them over the
+        # same samples (a store-to-load stall); each channel's sums keep their order
+        n_groups = (n_r + _GROUP - 1) // _GROUP
+        for g in nb.prange(n_groups):
+            n0 = g * _GROUP
+            nk = min(_GROUP, n_r - n0)
+            buf = np.empty(_GROUP * 3 * _BLOCK)
+            rre = np.zeros(_GROUP * n_alloc)
+            rim = np.zeros(_GROUP * n_alloc)
+            half = taps // 2
+            for s0 in range(0, n_s, _BLOCK):
+                s1 = min(s0 + _BLOCK, n_s)
+                for j in range(nk):
+                    n = n0 + j
+                    _pair_block(px[s0:s1], py[s0:s1], pz[s0:s1], fre[s0:s1], fim[s0:s1],
+                                r1[s0:s1], c[n, 0], c[n, 1], c[n, 2], ex[n, 0], ex[n, 1],
+                                ey[n, 0], ey[n, 1], hkw[n], hkh[n], inv_c, inv_lam, alpha,
+                                small_abs, spreading, baffle,
+                                buf[j * 3 * _BLOCK:(j + 1) * 3 * _BLOCK])
+                for i in range(s1 - s0):
+                    for j in range(nk):
+                        o = j * 3 * _BLOCK + i
+                        mu = (buf[o + 2 * _BLOCK] - t0) * fs + q0
+                        if mu < lo or mu >= hi:
+                            continue
+                        m0 = int(mu)
+                        x = (mu - m0) * n_phase
+                        r = min(int(x), n_phase - 1)
+                        w = x - r
+                        base = j * n_alloc + m0 - half + 1
+                        for t in range(0, taps, WIDTH):
+                            spread8(tflat, dflat, r * taps + t, w, rre, rim, base + t, buf[o],
+                                    buf[o + _BLOCK])
+            for j in range(nk):
+                row = out[n0 + j]
+                for m in range(n_alloc):
+                    row[m] = complex(rre[j * n_alloc + m], rim[j * n_alloc + m])
+        return out
     for n in nb.prange(n_r):
         row = out[n]
         cx, cy, cz = c[n, 0], c[n, 1], c[n, 2]
@@ -321,9 +361,6 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
             _pair_block(px[s0:s1], py[s0:s1], pz[s0:s1], fre[s0:s1], fim[s0:s1], r1[s0:s1], cx, cy,
                         cz, ex0, ex1, ey0, ey1, kw, kh, inv_c, inv_lam, alpha, small_abs,
                         spreading, baffle, buf)
-            if vec:
-                _add_block8(rre, rim, buf, s1 - s0, t0, fs, q0, tflat, dflat, taps, n_phase, lo, hi)
-                continue
             for i in range(s1 - s0):
                 base = _tap_kernel(buf[2 * _BLOCK + i], t0, fs, q0, table, dtable, lo, hi, k)
                 if base >= 0:
