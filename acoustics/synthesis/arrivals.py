@@ -252,27 +252,6 @@ def _add_split(rre, rim, base, ar, ai, k):
         sim[j] += ai * k[j]
 
 
-@nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
-def _add_block8(rre, rim, buf, n, t0, fs, q0, tflat, dflat, taps, n_phase, lo, hi):
-    """:func:`_tap_kernel` and :func:`_add_split` for the ``n`` arrivals of a block (``buf`` as
-    :func:`_pair_block` writes it), eight taps a vector step (:func:`spread8`; L a multiple of
-    8): the same products and sums, the kernel never stored."""
-    half = taps // 2
-    for i in range(n):
-        mu = (buf[2 * _BLOCK + i] - t0) * fs + q0
-        if mu < lo or mu >= hi:
-            continue
-        m0 = int(mu)
-        x = (mu - m0) * n_phase
-        r = min(int(x), n_phase - 1)
-        w = x - r
-        base = m0 - half + 1
-        ar = buf[i]
-        ai = buf[_BLOCK + i]
-        for j in range(0, taps, WIDTH):
-            spread8(tflat, dflat, r * taps + j, w, rre, rim, base + j, ar, ai)
-
-
 @nb.njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
 def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, inv_lam, alpha,
             small_abs, spreading, baffle, table, dtable, t0, fs, q0, n_out, n_alloc):
