@@ -5,8 +5,11 @@ run-time alias checks and remainders, so the eight multiply-adds that spread one
 delta train cost several times their arithmetic. :func:`spread8` emits them directly: two
 8-double loads from the kernel table, one fused multiply-add for the interpolated kernel, and
 one load, fused multiply-add and store per train — the same ``fma`` operations, in the same order
-per tap, that the compiled loop of :func:`acoustics.synthesis.arrivals._add_split` performs, so
-the sums are bit-identical (tests/test_arrivals_simd.py).
+per tap, that the compiled loops of :func:`acoustics.synthesis.arrivals._tap_kernel` and
+``_add_split`` perform on a machine with FMA, so the sums are the same bits (checked on twelve
+synthesis cases when it was introduced: docs/performance.md, "Echo synthesis against the code
+before issue 31"). tests/test_arrivals_simd.py checks the spread against numpy. ``llvm.fma`` is
+portable LLVM: a target without vector FMA splits or emulates it, exactly.
 """
 from __future__ import annotations
 
