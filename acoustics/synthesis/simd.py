@@ -2,8 +2,8 @@
 
 numba leaves LLVM's SLP vectoriser off and its loop vectoriser guards a loop of eight taps with
 run-time alias checks and remainders, so the eight multiply-adds that spread one arrival onto a
-delta train cost several times their arithmetic. :func:`spread8` emits them directly: two
-8-double loads from the kernel table, one fused multiply-add for the interpolated kernel, and
+delta train cost far more than their arithmetic (a kernel stored and read back, alias checks:
+docs/performance.md). :func:`spread8` emits them directly: two 8-double loads from the kernel table, one fused multiply-add for the interpolated kernel, and
 one load, fused multiply-add and store per train — the same ``fma`` operations, in the same order
 per tap, that the compiled loops of :func:`acoustics.synthesis.arrivals._tap_kernel` and
 ``_add_split`` perform on a machine with FMA, so the sums are the same bits (checked on twelve
