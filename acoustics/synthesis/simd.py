@@ -3,13 +3,14 @@
 numba leaves LLVM's SLP vectoriser off and its loop vectoriser guards a loop of eight taps with
 run-time alias checks and remainders, so the eight multiply-adds that spread one arrival onto a
 delta train cost far more than their arithmetic (a kernel stored and read back, alias checks:
-docs/performance.md). :func:`spread8` emits them directly: two 8-double loads from the kernel table, one fused multiply-add for the interpolated kernel, and
-one load, fused multiply-add and store per train — the same ``fma`` operations, in the same order
-per tap, that the compiled loops of :func:`acoustics.synthesis.arrivals._tap_kernel` and
-``_add_split`` perform on a machine with FMA, so the sums are the same bits (checked on twelve
-synthesis cases when it was introduced: docs/performance.md, "Echo synthesis against the code
-before issue 31"). tests/test_arrivals_simd.py checks the spread against numpy. ``llvm.fma`` is
-portable LLVM: a target without vector FMA splits or emulates it, exactly.
+docs/performance.md). :func:`spread8` emits them directly: two 8-double loads from the kernel
+table, one fused multiply-add for the interpolated kernel, and one load, fused multiply-add and
+store per train — the same ``fma`` operations, in the same order per tap, that the compiled loops
+of :func:`acoustics.synthesis.arrivals._tap_kernel` and ``_add_split`` perform on a machine with
+FMA, so the sums are the same bits (checked on twelve synthesis cases when it was introduced:
+docs/performance.md, "Echo synthesis against the code before issue 31").
+tests/test_arrivals_simd.py checks the spread against numpy. ``llvm.fma`` is portable LLVM: a
+target without vector FMA splits or emulates it, exactly.
 """
 from __future__ import annotations
 
