@@ -16,15 +16,16 @@ azimuth and range the 3-D position is taken at change):
   × the weighted subarray's array factor in azimuth, both from the record) to the A and B images
   over ±1.5 range cells × ±2 beams around the peak, its complex amplitudes a_A, a_B giving
   ψ = arg(a_A a_B*);
-* *two-target fit*: the same with two point responses (variable projection: the amplitudes
-  linear, the two delays and directions by Levenberg–Marquardt from four starts half a cell
-  apart), taken where the one-target fit leaves more than −30 dB of the patch's energy and two
-  targets lower that by 6 dB; the component nearest the peak is the detection, located at its own
-  fitted delay and direction (ψ_AB depends on the azimuth through the baseline's x part).
+* *two-target fit*: the chain's ``detect.elevation: fit`` (processing/detection/elevation_fit.py:
+  two point responses, the amplitudes linear, the delays and directions by Levenberg–Marquardt
+  from four starts half a cell apart; taken for detections of 30 dB SNR or more where the
+  one-target fit leaves more than −30 dB of the patch's energy and two targets lower that by
+  6 dB; the component nearest the peak is the detection, located at its own fitted delay and
+  direction, since ψ_AB depends on the azimuth through the baseline's x part).
 
-It also reports, for each false count of the chain, the SNR, the distance of the nearest other
-fish (resolution cells) and the elevations each estimator gives. A diagnosis, not a setting:
-nothing here is used by the chain.
+It also reports, for each false count of the peak estimator and of the two-target fit, the SNR,
+the distance of the nearest other fish (resolution cells), the elevations each estimator gives
+and the one-target fit's residual. The echo means and the one-target fit are diagnoses only.
 """
 from __future__ import annotations
 
@@ -43,66 +44,11 @@ except ImportError:        # run from the repository root
 
 from density import DEV_SEEDS, PINGS, SCENE, THESIS_DENSITY
 
+from processing.detection.elevation_fit import fit_detections, point_response
+
 ECHO_K = (2, 8)
 #: the patch fitted around a peak: ±1.5 range cells (interpolated samples) × ±2 beams
 PATCH_BEAMS = 2
-#: the two-target fit is taken where the one-target residual exceeds this (dB of the patch
-#: energy; an isolated fish leaves −40 to −47 dB) and two targets lower it by FIT_GAIN_DB
-FIT_TRIGGER_DB = -30.0
-FIT_GAIN_DB = 6.0
-
-
-class PointResponse:
-    """The image of a point target: compressed pulse p(t) × array factor AF(Δu)."""
-
-    def __init__(self, record, settings):
-        from processing.imaging.beamforming import SubarrayGeometry
-        from processing.imaging.compression import RangeFilter
-        rf = RangeFilter.design(record.replica, n_samples=record.samples.shape[-1], rate_hz=record.rate_hz,
-                                bandwidth_hz=record.bandwidth_hz, range_window=settings.image.range_window)
-        # p(t) on a grid 64 times finer than the samples: the band-limited spectrum zero-padded
-        up = 64
-        n = rf.nfft
-        big = np.zeros(n * up, complex)
-        h = (n + 1) // 2
-        big[:h], big[n * up - (n - h):] = rf.response[:h], rf.response[h:]
-        p = np.fft.ifft(big) * up
-        half = 200 * up
-        self.grid_s = np.arange(-half, half + 1) / (record.rate_hz * up)
-        self.pulse = np.concatenate([p[-half:], p[:half + 1]])
-        geo = SubarrayGeometry(record.element_position_m[record.image_groups["A"]], settings.image.spatial_window)
-        self.x_m = geo.positions_m[:, 0] - geo.center_m[0]
-        self.w = geo.weights / geo.weights.sum()
-        self.k = 2 * np.pi / record.wavelength_m
-
-    def columns(self, t_s, u, tau_s, u_t):
-        """Model images (n_t · n_u, n_targets) of unit targets at delays tau_s and sines u_t."""
-        cols = []
-        for a, b in zip(tau_s, u_t):
-            pr = (np.interp(t_s - a, self.grid_s, self.pulse.real, 0, 0)
-                  + 1j * np.interp(t_s - a, self.grid_s, self.pulse.imag, 0, 0))
-            af = np.exp(1j * self.k * np.multiply.outer(u - b, self.x_m)) @ self.w
-            cols.append(np.outer(pr, af).ravel())
-        return np.stack(cols, -1)
-
-    def fit(self, patch_a, patch_b, t_s, u, x0):
-        """Least-squares targets (x = delays then sines), amplitudes (n, 2) and residual fraction."""
-        from scipy.optimize import least_squares
-        y = np.stack([patch_a.ravel(), patch_b.ravel()], -1)
-        n = len(x0) // 2
-
-        def solve(x):
-            m = self.columns(t_s, u, x[:n], x[n:])
-            c = np.linalg.lstsq(m, y, rcond=None)[0]
-            return m, c
-
-        def res(x):
-            m, c = solve(x)
-            r = y - m @ c
-            return np.concatenate([r.real.ravel(), r.imag.ravel()])
-        x = least_squares(res, x0, x_scale=np.r_[[1e-5] * n, [0.01] * n], method="lm").x
-        m, c = solve(x)
-        return x, c, float(np.sum(np.abs(y - m @ c) ** 2) / np.sum(np.abs(y) ** 2))
 
 
 def _run(seed, rho=THESIS_DENSITY):
@@ -121,7 +67,7 @@ def _run(seed, rho=THESIS_DENSITY):
 def _estimates(chain, det, side):
     """ψ (and the azimuth, range it is located at) of each estimator for the detections in span."""
     im, rec, t = det.images, chain.record, det.table
-    resp = PointResponse(rec, chain.settings)
+    resp = point_response(rec, chain.settings.image)
     c = rec.sound_speed_m_s
     dr, du = det.range_resolution_m, det.azimuth_resolution_rad
     rows = int(round(1.5 * dr / np.diff(im.range_m[:2])[0]))
@@ -129,7 +75,8 @@ def _estimates(chain, det, side):
     est = {k: (t["psi_rad"].copy(), t["azimuth_rad"].copy(), t["range_m"].copy())
            for k in ["peak"] + [f"echo mean {k}" for k in ECHO_K] + ["one-target fit", "two-target fit"]}
     fits = {}
-    for d in np.flatnonzero(t["in_span"] & ~side):
+    idx = np.flatnonzero(t["in_span"] & ~side)
+    for d in idx:
         p, row, beam = t["ping"][d], t["row"][d], t["beam"][d]
         for k in ECHO_K:
             lo, hi = max(row - k, 0), row + k + 1
@@ -138,26 +85,16 @@ def _estimates(chain, det, side):
         r0, r1 = max(row - rows, 0), row + rows + 1
         b0, b1 = max(beam - PATCH_BEAMS, 0), min(beam + PATCH_BEAMS + 1, u_ax.size)
         a, b = im.image[p, 0, r0:r1, b0:b1], im.image[p, 1, r0:r1, b0:b1]
-        tt, uu = t_ax[r0:r1], u_ax[b0:b1]
-        tau0, u0 = 2 * t["range_m"][d] / c, np.sin(t["azimuth_rad"][d])
-        x1, c1, e1 = resp.fit(a, b, tt, uu, np.array([tau0, u0]))
+        x1, c1, e1 = resp.fit(a, b, t_ax[r0:r1], u_ax[b0:b1], np.array([2 * t["range_m"][d] / c,
+                                                                         np.sin(t["azimuth_rad"][d])]))
         est["one-target fit"][0][d] = np.angle(c1[0, 0] * np.conj(c1[0, 1]))
-        best = (None, None, np.inf)
-        if 10 * np.log10(e1) > FIT_TRIGGER_DB:
-            dt, ds = dr / c, du / 2      # half a cell in delay (2 dr / c / 2) and in sine
-            for oa, ob in ((dt, 0), (0, ds), (dt, ds), (dt, -ds)):
-                x0 = np.array([x1[0] - oa / 2, x1[0] + oa / 2, x1[1] - ob / 2, x1[1] + ob / 2])
-                fit = resp.fit(a, b, tt, uu, x0)
-                if fit[2] < best[2]:
-                    best = fit
-        fits[d] = (e1, best[2])
-        psi, az, rg = t["psi_rad"][d], t["azimuth_rad"][d], t["range_m"][d]
-        if best[0] is not None and 10 * np.log10(best[2]) <= 10 * np.log10(e1) - FIT_GAIN_DB:
-            x2, c2 = best[0], best[1]
-            r2 = x2[:2] * c / 2
-            j = int(np.argmin(np.hypot((r2 - rg) / dr, (x2[2:] - u0) / du)))
-            psi, az, rg = np.angle(c2[j, 0] * np.conj(c2[j, 1])), np.arcsin(np.clip(x2[2 + j], -1, 1)), r2[j]
-        est["two-target fit"][0][d], est["two-target fit"][1][d], est["two-target fit"][2][d] = psi, az, rg
+        fits[d] = e1
+    # the chain's own two-target fit (detect.elevation: fit)
+    psi, az, rg, taken = fit_detections(im, rec, t["ping"][idx], t["row"][idx], t["beam"][idx], t["range_m"][idx],
+                                        t["azimuth_rad"][idx], t["snr_db"][idx])
+    two = est["two-target fit"]
+    for arr, new in zip(two, (psi, az, rg)):
+        arr[idx[taken]] = new[taken]
     return est, fits
 
 
@@ -224,8 +161,7 @@ def edge_section(seeds=DEV_SEEDS) -> str:
                 el = {name: np.degrees(tabs[name]["elevation_rad"][d]) for name in est}
                 false_rows.append([who, seed, int(det.table["ping"][d]), f"{det.table['snr_db'][d]:.0f}", f"{nn:.2f}",
                                    f"{tel[f]:+.3f}"] + [f"{el[k]:+.3f}" for k in est]
-                                  + [f"{10 * np.log10(fits[d][0]):.0f} / {10 * np.log10(fits[d][1]):.0f}"
-                                     if np.isfinite(fits[d][1]) else f"{10 * np.log10(fits[d][0]):.0f} / –"])
+                                  + [f"{10 * np.log10(fits[d]):.0f}"])
         print(f"  seed {seed}: {time.perf_counter() - t0:.0f} s", flush=True)
     names = [k for k in totals if not k.endswith(" misses")]
     rows = [[k, f"{100 * totals[k][2] / totals[k][0]:+.1f}", f"{100 * totals[k][1] / totals[k][0]:.2f}",
@@ -236,10 +172,10 @@ def edge_section(seeds=DEV_SEEDS) -> str:
             f"{machine()}):\n\n"
             + table(["ψ_AB estimator", "bias (%)", "nMAE (%)", "missed fish-pings", "false counts"], rows)
             + "\n\nThe false counts of the chain's estimator (peak) and of the two-target fit, with the elevation (°) each "
-            "estimator locates them at (the counting volume's faces at ±0.419°) and the one- / "
-            "two-target fits' residuals (dB of the patch's energy):\n\n"
+            "estimator locates them at (the counting volume's faces at ±0.419°) and the one-target "
+            "fit's residual (dB of the patch's energy; an isolated fish leaves −40 to −47 dB):\n\n"
             + table(["false count of", "seed", "ping", "SNR (dB)", "nearest other fish (cells)", "true elevation"]
-                    + list(est) + ["fit residuals (dB)"], false_rows))
+                    + list(est) + ["one-target fit residual (dB)"], false_rows))
 
 
 if __name__ == "__main__":
