@@ -1,7 +1,8 @@
 """Why the per-ping count errs at the counting volume's elevation faces: a diagnosis on the
 development seeds of benchmarks/density.py (its school at the thesis' density, seeds 301–320).
 
-    python benchmarks/density_edge.py            # prints the markdown quoted in docs/validation.md
+    python benchmarks/validation.py --only density_edge   # docs/validation.md's section
+    python benchmarks/density_edge.py                     # the same, printed
 
 For every counted detection in the counting volume's range–azimuth span it estimates the
 interferometric phase ψ_AB in four ways and recounts the pings with each (the detections, the
@@ -166,7 +167,8 @@ def edge_section(seeds=DEV_SEEDS) -> str:
     names = [k for k in totals if not k.endswith(" misses")]
     rows = [[k, f"{100 * totals[k][2] / totals[k][0]:+.1f}", f"{100 * totals[k][1] / totals[k][0]:.2f}",
              int(totals[k + ' misses'][0]), int(totals[k][3])] for k in names]
-    return ("Per-ping count at 0.46 fish/m³ on the development seeds "
+    return ("### The per-ping count at the fan's faces: the elevation estimators (development seeds)\n\n"
+            "Per-ping count at 0.46 fish/m³ on the development seeds "
             f"{seeds[0]}–{seeds[-1]} ({int(totals['peak'][0])} fish-pings in the volume) with each "
             f"estimator of ψ_AB (`python benchmarks/density_edge.py`; {time.perf_counter() - t0:.0f} s, "
             f"{machine()}):\n\n"
