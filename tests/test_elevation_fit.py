@@ -83,3 +83,35 @@ def test_weak_or_unmeasured_detections_are_not_fitted():
     ping, row, beam, rng, az = _peak(im)
     for snr in (20.0, np.nan):
         assert not fit_detections(im, rec, ping, row, beam, rng, az, np.array([snr]))[3].any()
+
+
+def test_the_chain_applies_the_fit_as_detect_all_does_however_the_record_is_cut():
+    """The chain's pooled path (candidates kept, images dropped, the fit on a second imaging)
+    gives the detections that detecting every ping at once with the fit gives."""
+    from processing.chain import detect_record
+    from processing.detection.detect import detect_all
+    from processing.pipeline import noise_band_of, resolve_settings, volume_of
+    text = ("name: glint-noise\nseed: 5\nmedium: {sound_speed_m_s: 1530.0}\n"
+            "sampling: {time_offset_s: 0.018, samples: 1024}\nnoise: {enabled: true}\n"
+            "pings: {count: 3, interval_s: 0.25}\ntargets:\n  points:\n"
+            "    - {range_m: 20.0, azimuth_deg: 0.3, elevation_deg: 0.45}\n"
+            "    - {range_m: 20.027, azimuth_deg: 2.2, elevation_deg: -0.6}\n"
+            "processing: {image: {range_m: [19.0, 21.0]}, detect: {noise: {source: image}}}\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tree = simulate(scene_from_text(text))
+    st = resolve_settings(tree)
+    st = st.model_copy(update={"detect": st.detect.model_copy(update={"elevation": "fit"})})
+    rec = read_record(tree)
+    im = form_images(rec, st.image, noise_band_hz=noise_band_of(tree))
+    vol = volume_of(tree, st, image_range_m=(im.range_m[0], im.range_m[-1]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = detect_all(im, rec, st.detect, vol, upsample=im.interpolation)
+        det, _ = detect_record(rec, st, vol, noise_band_hz=noise_band_of(tree), chunk_pings=1, workers=2)
+        peak = detect_all(im, rec, st.detect.model_copy(update={"elevation": "peak"}), vol,
+                          upsample=im.interpolation)
+    # the fit moved something (the merged pair's peak), and the chain moved the same
+    assert not np.array_equal(ref.table["psi_rad"], peak.table["psi_rad"])
+    for k, v in ref.table.items():
+        np.testing.assert_array_equal(det.table[k], v, err_msg=k)
