@@ -167,7 +167,10 @@ def density_curve(densities=DENSITIES, seeds=SEEDS):
             fitted = {"fit_bias": float((pf_ - pt_).sum() / pt_.sum()),
                       "fit_nmae": float(np.abs(pf_ - pt_).sum() / pt_.sum()),
                       "fit_nmae_sd": float(np.nanstd(fit_seed, ddof=1)),
-                      "fit_run_nmae": float(np.abs(run_f - run_t).sum() / run_t.sum())}
+                      "fit_run_nmae": float(np.abs(run_f - run_t).sum() / run_t.sum()),
+                      "fit_abs": int(np.abs(pf_ - pt_).sum()),
+                      "ping_abs": int(np.abs(np.concatenate(pc) - pt_).sum()),
+                      "true_total": int(pt_.sum())}
         pc, pt, pr, pk = np.concatenate(pc), np.concatenate(pt), np.concatenate(pr), np.concatenate(pk)
         ps, ps30 = np.concatenate(ps), np.concatenate(ps30)
         soft_seed = np.array([np.abs(c_ - t_).sum() / t_.sum() if t_.sum() else np.nan
@@ -235,8 +238,10 @@ def _figure(rows, path):
     ax.plot(rho, [100 * r["soft_nmae"] for r in rows], "v:", color="tab:orange", ms=4,
             label="nMAE, per-ping count, soft volume edge")
     fr = [r for r in rows if "fit_nmae" in r]
-    ax.errorbar([r["rho"] for r in fr], [100 * r["fit_nmae"] for r in fr], yerr=[100 * r["fit_nmae_sd"] for r in fr],
-                fmt="*", color="tab:red", ms=9, capsize=3, label="nMAE, per-ping count, elevation fit")
+    # set a little to the right of the per-ping count's own point, which it would hide
+    ax.errorbar([1.08 * r["rho"] for r in fr], [100 * r["fit_nmae"] for r in fr],
+                yerr=[100 * r["fit_nmae_sd"] for r in fr], fmt="*", color="black", ms=9, capsize=3,
+                label="nMAE, per-ping count, elevation fit (drawn 8 % right)")
     # the reference per-ping count's sidelobes reach hundreds of per cent: linear within ±10 %, log beyond
     ax.set_yscale("symlog", linthresh=10)
     ax.axhline(100 * NMAE_LIMIT, color="k", lw=0.8, ls=":", label="nMAE 10 %")
@@ -363,7 +368,9 @@ def density_section() -> str:
         f"{len(SEEDS) * PINGS} pings changed by more than 0.01 fish); with the elevation of a "
         f"merged echo from the two-target fit (`detect.elevation: fit`, below), bias "
         f"{100 * thesis['fit_bias']:+.1f} %, nMAE over pings {100 * thesis['fit_nmae']:.1f} % "
-        f"({verdict(ok_fit)}) and over runs {100 * thesis['fit_run_nmae']:.1f} % ({verdict(ok_fit_run)}). "
+        f"({verdict(ok_fit)}; {thesis['fit_abs']} of the {thesis['true_total']} fish-pings in error, against "
+        f"{thesis['ping_abs']} with the peak's phase) and over runs {100 * thesis['fit_run_nmae']:.1f} % "
+        f"({verdict(ok_fit_run)}). "
         f"The track count's nMAE {where(cross_t, 'track_nmae')}; the per-ping count's "
         f"{where(cross_p, 'ping_nmae')}. Few fish pass at the sparsest densities (a handful per "
         "run), so there one fish more or less is tens of per cent: read the low end's nMAE with "
@@ -459,8 +466,10 @@ def density_section() -> str:
         "the development seeds it locates 5 of the 7 at their true elevation (within 0.07°) and so "
         "outside, fails where three fish share the patch (seed 317, pings 10 and 22), adds two "
         "false counts in that seed, and brings 3 missed fish back inside: bias −4.0 % → −4.0 %, "
-        "nMAE over pings 7.05 → 5.73 % (missed fish-pings 25 → 22, false counts 7 → 4). The "
-        "held-out seeds' result is in the table and the verdict above. The default stays `peak` "
+        "nMAE over pings 7.05 → 5.73 % (missed fish-pings 25 → 22, false counts 7 → 4). On the "
+        "held-out seeds (the table and the verdict above) it takes one fish-ping off the errors "
+        "at 0.46 fish/m³, and that puts the nMAE at the 5 % line: a margin of one fish-ping, "
+        "smaller than the spread between seeds. The default stays `peak` "
         "(the reference): the fit costs about a minute per run at this density on this machine (a "
         "few Levenberg–Marquardt fits per detection above 30 dB SNR) against under a second for "
         "detection, it moves the located positions the tracker uses (its effect on the tracks is "
