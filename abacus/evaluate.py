@@ -14,7 +14,7 @@ import xarray as xr
 from processing.imaging.beamforming import SubarrayGeometry
 from processing.imaging.compression import RangeFilter
 from processing.base.dataset import TRUTH_GROUP, read_record, source_of
-from processing.detection.detect import candidates, noise_fit, ping_thresholds, score_all, select
+from processing.detection.detect import candidates, noise_fit, ping_thresholds, refit_elevations, score_all, select
 from processing.detection.sidelobes import counted_sidelobes
 from processing.imaging.images import form_images
 from processing.backscatter.calibration import beam_solid_angle_sr, calibration_of, range_energy_width_m
@@ -115,6 +115,8 @@ def evaluate(tree: xr.DataTree, settings_list) -> dict:
              for k, f in floors.items()}
     for i, (st, key, im, volume, mags, thr, pool_key) in enumerate(plans):
         table = select(pools[pool_key], thr)
+        if st.detect.elevation == "fit":
+            refit_elevations(table, im, rec, volume, pose=pose)
         side = counted_sidelobes(table, rec, st.count, range_resolution_m=im.range_resolution_m,
                                  azimuth_resolution_rad=im.azimuth_resolution_rad,
                                  image_group=st.detect.image_group)

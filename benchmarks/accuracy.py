@@ -27,7 +27,7 @@ hand.
 
 Not here: the estimators whose error is measured against the simulator's truth rather than a
 reference setting — the count rules and corrections (`count.sidelobe_db`, `count.ghost_db`,
-`count.coincidence_correction`, `count.volume_edge`: [validation.md](validation.md), count
+`count.coincidence_correction`, `count.volume_edge`, `detect.elevation`: [validation.md](validation.md), count
 against density), the single-target criteria (`single_target.*`:
 [single_targets.md](single_targets.md)) and the tracker's parts (`track.*`: validation.md,
 tracking).""",

@@ -448,5 +448,11 @@ def density():
     return density_section()
 
 
+@section
+def density_edge():
+    from density_edge import edge_section
+    return edge_section()
+
+
 if __name__ == "__main__":
     REPORT.main()

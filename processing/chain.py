@@ -23,7 +23,7 @@ import numpy as np
 
 from processing.base.counting_volume import CountingVolume
 from processing.detection.detect import (DetectionWarning, Detections, Thresholds, candidates, detect_all,
-                        fit_noise_cells, noise_cells, ping_thresholds, select, snr_db)
+                        fit_noise_cells, noise_cells, ping_thresholds, refit_elevations, select, snr_db)
 from processing.imaging.images import form_images
 from processing.detection.noise import NoiseEstimateError, RayleighFit, rayleigh_mean
 from processing.base.resources import usable_cores
@@ -167,6 +167,15 @@ def _detect_chunk(record, settings: ProcessingSettings, volume, sl, *, fit, nois
     return det, _kept(im, sl, keep)
 
 
+def _refit_chunk(record, settings: ProcessingSettings, volume, sl, det: Detections, *, noise_band_hz, pose):
+    """``detect.elevation: fit`` for a chunk's pooled detections (rows of ``det.table``, whose
+    ``ping`` indexes the record): the chunk imaged again and the fit written in place."""
+    if not len(det.table.get("ping", ())):
+        return
+    im = form_images(record_pings(record, sl), settings.image, noise_band_hz=noise_band_hz)
+    refit_elevations(det.table, im, record, volume, pose=pose, ping_offset=sl.start)
+
+
 @dataclass
 class _Pool:
     """What one imaging pass keeps of a chunk while the pooled noise fit is not yet known.
@@ -258,6 +267,10 @@ def _one_pass(record, settings: ProcessingSettings, volume, chunks, *, noise_ban
         return _pooled_fit(np.zeros(0), st, 1, settings.image.interpolation), []
     fit = _fit_of_parts(parts, st, settings.image.interpolation)
     dets = [_from_pool(p, fit, st) if fit is not None else None for p in parts]
+    if st.elevation == "fit":
+        # the fit needs the images, which the pool did not keep: each such chunk imaged again
+        _map(lambda pd: _refit_chunk(record, settings, volume, pd[0].sl, pd[1], noise_band_hz=noise_band_hz,
+                                     pose=pose), [(p, d) for p, d in zip(parts, dets) if d is not None], workers)
     redo = [p for p, d in zip(parts, dets) if d is None]
     again = _map(lambda p: _detect_chunk(record, settings, volume, p.sl, fit=fit,
                                          noise_band_hz=noise_band_hz, pose=pose,

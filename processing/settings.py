@@ -115,6 +115,12 @@ class DetectSettings(ConfigModel):
     cfar: CfarSettings = CfarSettings()
     image_group: str = "A"
     """Image to detect on (A, as the thesis; B; or AB in combined mode)."""
+    elevation: Literal["peak", "fit"] = "peak"
+    """The interferometric phase of a detection: "peak", arg(I_A I_B*) at its peak cell (the
+    reference, the thesis'); "fit", where the echo does not fit one point response and two fit
+    it much better (a neighbour within about a cell: glint), the phase, azimuth and range of the
+    fitted target nearest the peak (processing/detection/elevation_fit.py; slower: a few fits
+    per detection above 30 dB SNR)."""
 
     @model_validator(mode="after")
     def _fixed(self):

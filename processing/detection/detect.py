@@ -33,7 +33,7 @@ from processing.detection.thresholds import cell_pfa, cfar_threshold, rayleigh_t
 
 __all__ = ["DetectionWarning", "Detections", "detect_all", "score_all", "n_tested_cells", "noise_cells",
            "fit_noise_cells", "noise_fit", "Thresholds", "ping_thresholds", "threshold_from_noise",
-           "candidates", "select", "snr_db"]
+           "candidates", "select", "snr_db", "refit_elevations"]
 
 
 class DetectionWarning(UserWarning):
@@ -182,9 +182,26 @@ def detect_all(images: Images, record, settings: DetectSettings, volume: Countin
                f"threshold may not hold its false-alarm rate")
         warnings.warn(msg, DetectionWarning, stacklevel=2)
         thr.notes.append(msg)
-    table = candidates(images, record, settings, thr.per_ping, volume, pose=pose, magnitudes=mags)
-    return Detections(select(table, thr), thr.median, thr.noise, thr.pfa_cell, thr.n_cells,
-                      thr.notes)
+    table = select(candidates(images, record, settings, thr.per_ping, volume, pose=pose, magnitudes=mags), thr)
+    if settings.elevation == "fit":
+        refit_elevations(table, images, record, volume, pose=pose)
+    return Detections(table, thr.median, thr.noise, thr.pfa_cell, thr.n_cells, thr.notes)
+
+
+def refit_elevations(table: dict, images: Images, record, volume: CountingVolume, *, pose=None,
+                     ping_offset: int = 0) -> None:
+    """``detect.elevation: fit``: the two-target fit's ψ, azimuth and range where it is taken
+    (:mod:`processing.detection.elevation_fit`), written into the table (in place).
+
+    ``images`` hold the pings ``table["ping"] − ping_offset``; ``pose`` is indexed by
+    ``table["ping"]``."""
+    from processing.detection.elevation_fit import fit_detections, relocate
+    if not images.interferometric or not len(table.get("ping", ())):
+        return
+    psi, az, rg, taken = fit_detections(images, record, table["ping"] - ping_offset, table["row"], table["beam"],
+                                        table["range_m"], table["azimuth_rad"], table["snr_db"])
+    relocate(table, np.flatnonzero(taken), psi[taken], az[taken], rg[taken], record=record, images=images,
+             volume=volume, pose=pose)
 
 
 @dataclass
