@@ -1,0 +1,172 @@
+"""The track-splitting part of the tracker: a track that holds two fish crossing the fan one
+behind the other is cut where the second one enters.
+
+A multibeam's fan is thin in elevation (0.86° here: 0.28 m at 19 m) and the interferometer
+places each echo across it, so a fish swimming through the fan moves through it monotonically:
+its detections' coordinate through the fan, u = n·z (n the fan's normal, the unit vector of
+increasing elevation at the detection, world frame), follows a line u = a + b t at the fish's
+own speed b through the fan. A second fish entering behind the first (the two one behind the
+other, at one range and azimuth, so that the gate cannot tell them apart) appears at the entry
+face again: against the track's own motion u steps back, and from there follows a line of the
+same slope. Along the fan (a fish whose elevation only scatters about a constant, b ≈ 0) a step
+is no evidence of a second fish, and the test does not apply.
+
+The test (:class:`FanCrossingSplit`) compares, on a finished track's detections, the weighted
+least-squares line (one fish) with a line of one slope and a step back against that slope at
+the best break (two fish, one behind the other), each detection weighted by its own variance
+through the fan nᵀRn (:func:`processing.tracking.filters.measurement_covariance`). The
+likelihood-ratio statistic Δχ² = χ²_line − χ²_step, divided by the step fit's residual variance
+per degree of freedom where that exceeds 1 (an echo merged with a neighbour's is placed worse
+than its own SNR says: the fit's own scatter then sets the scale, as in an F test), is compared
+with the chi-square quantile (1 degree of freedom) of ``probability``; the slope must differ from
+0 by as much (the track moves through the fan), the step must be backwards, and each part must
+hold ``min_hits`` detections (a confirmable track). A track cut in two is tested again in each
+part (binary segmentation), so a track holding three fish in a row is cut twice.
+
+Reference: change-point detection by likelihood ratio with binary segmentation (Scott & Knott
+1974; Killick & Eckley 2014 review); the step model is a shift in the intercept of a regression
+line (Quandt 1958), here one-sided, its sign given by the slope.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["FanCrossingSplit", "NoSplit", "splitter"]
+
+
+def _wls(X, u, w):
+    """Weighted least squares: coefficients (p,), their covariance (p, p) and χ² of the fit."""
+    A = X.T @ (w[:, None] * X)
+    try:
+        C = np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        return None, None, np.inf
+    beta = C @ (X.T @ (w * u))
+    r = u - X @ beta
+    return beta, C, float(np.sum(w * r * r))
+
+
+@dataclass(frozen=True)
+class NoSplit:
+    """No track splitting: every finished track is kept whole."""
+
+    name = "none"
+
+    def breaks(self, time_s, through_fan_m, variance_m2, fan_width_m):
+        """No break: an empty list."""
+        return []
+
+
+@dataclass(frozen=True)
+class FanCrossingSplit:
+    """Cut a track where it steps back through the fan against its own motion.
+
+    Attributes
+    ----------
+    probability : float
+        Chi-square quantile (1 degree of freedom) the step's likelihood ratio and the slope's
+        significance must each exceed.
+    min_hits : int
+        Detections each part must hold.
+    """
+
+    probability: float = 0.999
+    min_hits: int = 3
+    name = "fan_crossing"
+
+    def __post_init__(self):
+        if not 0.5 < self.probability < 1:
+            raise ValueError(f"split probability must lie in (0.5, 1), got {self.probability}")
+        if self.min_hits < 2:
+            raise ValueError(f"split min_hits must be at least 2, got {self.min_hits}")
+
+    @property
+    def threshold(self) -> float:
+        """The chi-square quantile (1 degree of freedom) of ``probability``."""
+        from scipy.stats import chi2
+        return float(chi2.ppf(self.probability, 1))
+
+    @property
+    def threshold2(self) -> float:
+        """The chi-square quantile (2 degrees of freedom) of ``probability``: the two lines'
+        likelihood ratio against one (one more intercept, one more slope)."""
+        from scipy.stats import chi2
+        return float(chi2.ppf(self.probability, 2))
+
+    def breaks(self, time_s, through_fan_m, variance_m2, fan_width_m):
+        """Where a track's detections are cut into fish that crossed the fan one after another.
+
+        Parameters
+        ----------
+        time_s : array_like, shape (k,)
+            Time of each detection of the track (s), ascending.
+        through_fan_m : array_like, shape (k,)
+            Each detection's coordinate through the fan, u = n·z (m).
+        variance_m2 : array_like, shape (k,)
+            Its variance nᵀRn (m²).
+        fan_width_m : array_like, shape (k,)
+            The fan's thickness at each detection's range (m): range × the transmitter's
+            elevation beamwidth.
+
+        Returns
+        -------
+        list of int
+            Ascending indices i (0 < i < k): a new fish starts at detection i.
+        """
+        t = np.asarray(time_s, float)
+        u = np.asarray(through_fan_m, float)
+        v = np.asarray(variance_m2, float)
+        width = np.broadcast_to(np.asarray(fan_width_m, float), t.shape)
+        ok = np.isfinite(t) & np.isfinite(u) & np.isfinite(v) & (v > 0) & np.isfinite(width)
+        if not ok.all():
+            idx = np.flatnonzero(ok)
+            return [int(idx[i]) for i in self.breaks(t[ok], u[ok], v[ok], width[ok])]
+        return self._segment(t, u, 1.0 / v, width, 0, self.threshold)
+
+    def _segment(self, t, u, w, width, offset, thr):
+        i = self._best_break(t, u, w, width, thr)
+        if i is None:
+            return []
+        return (self._segment(t[:i], u[:i], w[:i], width[:i], offset, thr) + [offset + i]
+                + self._segment(t[i:], u[i:], w[i:], width[i:], offset + i, thr))
+
+    def _best_break(self, t, u, w, width, thr):
+        k = len(t)
+        if k < 2 * self.min_hits:
+            return None
+        _, _, chi0 = _wls(np.stack([np.ones(k), t - np.average(t, weights=w)], -1), u, w)
+        best, best_stat = None, self.threshold2
+        for i in range(self.min_hits, k - self.min_hits + 1):
+            tau = 0.5 * (t[i - 1] + t[i])
+            # each fish its own line through the fan, both referred to the break's time
+            first = np.arange(k) < i
+            X = np.zeros((k, 4))
+            X[first, 0], X[first, 1] = 1.0, t[first] - tau
+            X[~first, 2], X[~first, 3] = 1.0, t[~first] - tau
+            beta, C, chi1 = _wls(X, u, w)
+            if beta is None:
+                continue
+            scale = max(1.0, chi1 / max(k - 4, 1))
+            b1, b2, jump = beta[1], beta[3], beta[2] - beta[0]
+            var_jump = (C[0, 0] + C[2, 2] - 2 * C[0, 2]) * scale
+            # two fish crossing one behind the other: each moves through the fan, the same way
+            # (as much evidence of motion as the test asks), and at the break the second is
+            # behind the first, against that motion
+            if (b1 * b2 <= 0 or min(b1 * b1 / C[1, 1], b2 * b2 / C[3, 3]) / scale < thr
+                    or jump * b1 >= 0 or jump * jump / var_jump < thr):
+                continue
+            stat = (chi0 - chi1) / scale
+            if stat > best_stat:
+                best, best_stat = i, stat
+        return best
+
+
+def splitter(name: str, *, probability: float = 0.999, min_hits: int = 3):
+    """The track-splitting part named by the setting ``track.split``: "none" or "fan_crossing"."""
+    if name == "none":
+        return NoSplit()
+    if name == "fan_crossing":
+        return FanCrossingSplit(probability, min_hits)
+    raise ValueError(f"tracking split must be 'none' or 'fan_crossing', got {name!r}")
