@@ -196,7 +196,7 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
                      beta: float = 0.2, confirm_hits: int = 3, confirm_window: int = 4,
                      max_misses: int = 2, resolution_m2=None, resolution_cells: float = 1.0,
                      confirm_resolved: bool = False, motion=None, management=None, through_fan=None,
-                     fan_width_m=None, split=None):
+                     fan_width_m=None, fan_centre_m=None, split=None):
     """Tracks of detections across pings.
 
     Parameters
@@ -390,9 +390,11 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
         if len(normal) != len(pos):
             raise ValueError("through_fan must have one row per detection")
         width = np.broadcast_to(np.asarray(fan_width_m, float), (len(pos),))
+        centre = np.zeros(len(pos)) if fan_centre_m is None else np.broadcast_to(
+            np.asarray(fan_centre_m, float), (len(pos),))
         parts = []
         for tr in done:
-            pieces = _split(tr, split, normal, width, pos, motion, management, next_id)
+            pieces = _split(tr, split, normal, centre, width, pos, motion, management, next_id)
             next_id += len(pieces) - 1
             parts.extend(pieces)
         done = parts
@@ -428,7 +430,7 @@ def fan_normal(n: int, rotation=None):
     return np.broadcast_to(R[..., :, 1], (int(n), 3)).copy()
 
 
-def _split(tr: Track, split, normal, width, pos, motion, management, next_id):
+def _split(tr: Track, split, normal, centre, width, pos, motion, management, next_id):
     """``tr`` cut where ``split`` finds a second fish: the first part keeps its states (the
     filter is causal), each later part is filtered again from its first detection; the later
     parts take ids from ``next_id`` on."""
@@ -437,7 +439,7 @@ def _split(tr: Track, split, normal, width, pos, motion, management, next_id):
         return [tr]
     det = np.array([tr.detection[i] for i in at], int)
     n = normal[det]
-    u = np.einsum("ki,ki->k", n, pos[det])
+    u = np.einsum("ki,ki->k", n, pos[det]) - centre[det]
     var = np.einsum("ki,kij,kj->k", n, np.array([tr.R[i] for i in at]), n)
     cuts = split.breaks(np.array([tr.times[i] for i in at]), u, var, width[det])
     if not cuts:

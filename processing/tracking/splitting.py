@@ -157,6 +157,11 @@ class FanCrossingSplit:
             if (b1 * b2 <= 0 or min(b1 * b1 / C[1, 1], b2 * b2 / C[3, 3]) / scale < thr
                     or jump * b1 >= 0 or jump * jump / var_jump < thr):
                 continue
+            # and the track stays in the fan longer than one fish moving through it as fast
+            # as the slower of the two could: its dwell is evidence of a second fish
+            inside = np.abs(u) <= 0.5 * width
+            if not inside.any() or np.ptp(t[inside]) * min(abs(b1), abs(b2)) <= np.mean(width[inside]):
+                continue
             stat = (chi0 - chi1) / scale
             if stat > best_stat:
                 best, best_stat = i, stat

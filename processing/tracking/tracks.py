@@ -137,6 +137,9 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
                                  rotation=poses.rotation_of(rows))
     normal = fan_normal(len(rows), poses.rotation_of(rows))
     fan_width = np.asarray(det["range_m"], float) * _elevation_beamwidth_rad(tree, detected.volume)
+    fan_centre = (np.zeros(len(rows)) if poses.position is None else
+                  np.einsum("ki,ki->k", normal, np.broadcast_to(poses.position if poses.position.ndim == 1
+                                                                else poses.position[rows], normal.shape)))
     targets = chain.single_targets(detected)
     ts_u, ts_c = targets["ts_uncomp_db"], targets["ts_comp_db"]
     single = np.asarray(targets["single_target"], bool)
@@ -160,6 +163,7 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
                               beta=ts_.beta, confirm_hits=ts_.confirm_hits,
                               confirm_window=ts_.confirm_window, max_misses=ts_.max_misses,
                               through_fan=normal[keep], fan_width_m=fan_width[keep],
+                              fan_centre_m=fan_centre[keep],
                               split=splitter(ts_.split, probability=ts_.split_probability,
                                              min_hits=ts_.confirm_hits))
     volume = detected.volume
