@@ -1,31 +1,37 @@
 """The track-splitting part of the tracker: a track that holds two fish crossing the fan one
 behind the other is cut where the second one enters.
 
-A multibeam's fan is thin in elevation (0.86° here: 0.28 m at 19 m) and the interferometer
-places each echo across it, so a fish swimming through the fan moves through it monotonically:
-its detections' coordinate through the fan, u = n·z (n the fan's normal, the unit vector of
-increasing elevation at the detection, world frame), follows a line u = a + b t at the fish's
-own speed b through the fan. A second fish entering behind the first (the two one behind the
-other, at one range and azimuth, so that the gate cannot tell them apart) appears at the entry
-face again: against the track's own motion u steps back, and from there follows a line of the
-same slope. Along the fan (a fish whose elevation only scatters about a constant, b ≈ 0) a step
-is no evidence of a second fish, and the test does not apply.
+A multibeam's fan is thin in elevation (0.86° for ABACUS: 0.28 m at 19 m) and the
+interferometer places each echo across it, so a fish swimming through the fan moves through it
+monotonically: its detections' coordinate through the fan, u = n·(z − p) (n the sonar's
+elevation axis in the world frame, p the sonar's position; u = 0 on the fan's centre plane),
+follows a line u = a + b t at the fish's own speed b through the fan. A second fish entering
+behind the first (one behind the other at one range and azimuth, so that the gate cannot tell
+their echoes apart) appears at the entry face again: against the track's own motion u steps
+back, and from there follows its own line. Along the fan (a fish whose elevation only scatters
+about a constant, or drifts slowly) a step is no evidence of a second fish.
 
-The test (:class:`FanCrossingSplit`) compares, on a finished track's detections, the weighted
-least-squares line (one fish) with a line of one slope and a step back against that slope at
-the best break (two fish, one behind the other), each detection weighted by its own variance
-through the fan nᵀRn (:func:`processing.tracking.filters.measurement_covariance`). The
-likelihood-ratio statistic Δχ² = χ²_line − χ²_step, divided by the step fit's residual variance
-per degree of freedom where that exceeds 1 (an echo merged with a neighbour's is placed worse
-than its own SNR says: the fit's own scatter then sets the scale, as in an F test), is compared
-with the chi-square quantile (1 degree of freedom) of ``probability``; the slope must differ from
-0 by as much (the track moves through the fan), the step must be backwards, and each part must
-hold ``min_hits`` detections (a confirmable track). A track cut in two is tested again in each
-part (binary segmentation), so a track holding three fish in a row is cut twice.
+The test (:class:`FanCrossingSplit`), on a finished track's detections, each weighted by its
+own variance through the fan nᵀRn (:func:`processing.tracking.filters.measurement_covariance`):
 
-Reference: change-point detection by likelihood ratio with binary segmentation (Scott & Knott
-1974; Killick & Eckley 2014 review); the step model is a shift in the intercept of a regression
-line (Quandt 1958), here one-sided, its sign given by the slope.
+* one fish: the weighted least-squares line; two fish: a line each, before and after a break
+  (Quandt 1958's two-phase regression), at the break that fits best;
+* the likelihood ratio Δχ² = χ²_one − χ²_two, divided by the two lines' residual variance per
+  degree of freedom where that exceeds 1 (an echo merged with a neighbour's is placed worse than
+  its own SNR says: the fit's own scatter then sets the scale, as in an F test), must exceed the
+  chi-square quantile of ``probability`` with 2 degrees of freedom (an intercept and a slope
+  more);
+* each fish must move through the fan, the same way: both slopes of one sign and each apart
+  from 0 beyond the 1-degree-of-freedom quantile of ``probability``;
+* at the break the second line lies behind the first, against that motion, by as much;
+* the track dwells in the fan (the time from its first to its last detection with
+  |u| ≤ w/2, w the fan's thickness at the detection's range) longer than one fish crosses it at
+  the slower of the two speeds, w/|b| — what a single fish could not do;
+* each part holds ``min_hits`` detections (a confirmable track).
+
+A track cut in two is tested again in each part (binary segmentation: Scott & Knott 1974;
+Killick & Eckley 2014 review change-point detection), so a track holding three fish in a row is
+cut twice.
 """
 from __future__ import annotations
 
@@ -103,7 +109,8 @@ class FanCrossingSplit:
         time_s : array_like, shape (k,)
             Time of each detection of the track (s), ascending.
         through_fan_m : array_like, shape (k,)
-            Each detection's coordinate through the fan, u = n·z (m).
+            Each detection's coordinate through the fan, u = n·(z − p) (m; 0 on the fan's
+            centre plane).
         variance_m2 : array_like, shape (k,)
             Its variance nᵀRn (m²).
         fan_width_m : array_like, shape (k,)
