@@ -1,4 +1,4 @@
-"""Fish tracks across pings: a tracker built of three replaceable parts, over 3-D detections.
+"""Fish tracks across pings: a tracker built of replaceable parts, over 3-D detections.
 
 The thesis counts per ping and names tracking (an αβ tracker) as its next step (§7). Here a
 detection is a point located in the world frame (range, azimuth and interferometric elevation
@@ -16,10 +16,13 @@ framework, each chosen by a setting of ``track`` and tested on its own:
 * **track management** (:mod:`processing.tracking.management`): M-of-N confirmation
   (``confirm_hits`` of ``confirm_window``), deletion after ``max_misses`` consecutive misses,
   births from the detections no track takes.
+* **track splitting** (:mod:`processing.tracking.splitting`, ``split``): once tracking ends, a
+  confirmed track whose detections step back through the fan's thin dimension against its own
+  motion through it (a second fish entering behind the first, one echo to the gate) is cut there.
 
 Ping by ping: every live track predicts its state to the ping's time; detections are gated and
 assigned; assigned tracks update, the others coast; unassigned detections start tentative tracks;
-management confirms, drops and ends tracks. Confirmed tracks are smoothed (RTS for the Kalman
+management confirms, drops and ends tracks. Confirmed tracks are split, then smoothed (RTS for the Kalman
 filter; the αβ tracker's positions are its filtered ones). Pure functions over arrays and a
 small :class:`Track` record; no state outside a call, so the result depends only on the
 detections and the settings.
