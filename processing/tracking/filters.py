@@ -392,6 +392,8 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
         normal = np.asarray(through_fan, float).reshape(-1, 3)
         if len(normal) != len(pos):
             raise ValueError("through_fan must have one row per detection")
+        if fan_width_m is None:
+            raise ValueError("splitting tracks needs fan_width_m (the fan's thickness at each detection)")
         width = np.broadcast_to(np.asarray(fan_width_m, float), (len(pos),))
         centre = np.zeros(len(pos)) if fan_centre_m is None else np.broadcast_to(
             np.asarray(fan_centre_m, float), (len(pos),))

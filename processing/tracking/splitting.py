@@ -22,8 +22,12 @@ own variance through the fan nᵀRn (:func:`processing.tracking.filters.measurem
   chi-square quantile of ``probability`` with 2 degrees of freedom (an intercept and a slope
   more);
 * each fish must move through the fan, the same way: both slopes of one sign and each apart
-  from 0 beyond the 1-degree-of-freedom quantile of ``probability``;
-* at the break the second line lies behind the first, against that motion, by as much;
+  from 0 beyond the 1-degree-of-freedom quantile of ``probability``, each line's errors scaled
+  by its own residual variance where that exceeds 1;
+* at the break the second line lies behind the first, against that motion, by as much, and the
+  two straddle the fan's centre plane — the first past it, the second before it: of two fish
+  that give one echo, the one nearer the centre plane is the stronger in the transmitter's
+  elevation pattern, so the second takes the echo over as it comes nearer than the first;
 * the track dwells in the fan (the time from its first to its last detection with
   |u| ≤ w/2, w the fan's thickness at the detection's range) longer than one fish crosses it at
   the slower of the two speeds, w/|b| — what a single fish could not do;
@@ -156,13 +160,24 @@ class FanCrossingSplit:
             if beta is None:
                 continue
             scale = max(1.0, chi1 / max(k - 4, 1))
+            # each line's own scatter scales its own errors (a part of merged echoes is placed
+            # worse than a part of clean ones; the two lines' errors are independent)
+            r2 = w * (u - X @ beta) ** 2
+            s1 = max(1.0, r2[first].sum() / max(i - 2, 1))
+            s2 = max(1.0, r2[~first].sum() / max(k - i - 2, 1))
             b1, b2, jump = beta[1], beta[3], beta[2] - beta[0]
-            var_jump = (C[0, 0] + C[2, 2] - 2 * C[0, 2]) * scale
+            var_jump = C[0, 0] * s1 + C[2, 2] * s2
             # two fish crossing one behind the other: each moves through the fan, the same way
             # (as much evidence of motion as the test asks), and at the break the second is
             # behind the first, against that motion
-            if (b1 * b2 <= 0 or min(b1 * b1 / C[1, 1], b2 * b2 / C[3, 3]) / scale < thr
+            if (b1 * b2 <= 0 or min(b1 * b1 / (C[1, 1] * s1), b2 * b2 / (C[3, 3] * s2)) < thr
                     or jump * b1 >= 0 or jump * jump / var_jump < thr):
+                continue
+            # the hand-over of one merged echo: the fish nearer the fan's centre plane (u = 0)
+            # is the stronger in the transmitter's elevation pattern, so the second takes the
+            # echo as it comes nearer than the first — the first past the centre plane, the
+            # second before it
+            if beta[0] * b1 <= 0 or beta[2] * b1 >= 0:
                 continue
             # and the track stays in the fan longer than one fish moving through it as fast
             # as the slower of the two could: its dwell is evidence of a second fish
