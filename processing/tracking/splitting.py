@@ -76,8 +76,9 @@ class FanCrossingSplit:
     Attributes
     ----------
     probability : float
-        Chi-square quantile (1 degree of freedom) the step's likelihood ratio and the slope's
-        significance must each exceed.
+        The probability whose chi-square quantiles the two lines' likelihood ratio against one
+        (2 degrees of freedom), each line's slope and the step back at the break (1 degree of
+        freedom each) must exceed.
     min_hits : int
         Detections each part must hold.
     """
