@@ -243,7 +243,7 @@ def tracking_section() -> str:
         "331 → 331 for 319. Over all 28 development runs the crossing school counts 462 tracks "
         "for 462 passages with the split (445, −3.7 %, without), each run's error between −2 "
         "and +3 tracks (standard deviation 1.2), so a total of 6 runs scatters by about ±3 "
-        "tracks (±3 % of 96) about its bias: the held-out total below (−5 tracks) lies 1.7 of "
+        "tracks (±3 % of 96) about its bias: the held-out total below (−5 tracks) lies 1.8 of "
         "those below it, and the ±5 % target on 6 runs is met or missed by a track. The school "
         "along the fan counts 952 for 904 over the same 28 runs (+5.3 %; 951, +5.2 %, without "
         "the split): its over-count (fragments, not the split) is as close to the target. The held-out seeds were run on an earlier version of the test "
