@@ -14,9 +14,9 @@ and 209, checked on 191–200, and run on 181–190 once settled. SEEDS were run
 version of it (without the per-line error scales and the straddle condition: crossing school
 −4.2 %, along the fan +3.6 %) and on this one; the two conditions were chosen on the
 development seeds alone (the straddle condition removed an along-fan cut of one fish's track
-there; the per-line scales changed nothing on 201–209 and cost a correct cut in each school on
-191–200, kept as the sounder statistics), and the version reported is the later one whatever
-SEEDS said.
+there; with it, the per-line scales change nothing on any development seed, 201–209 or
+191–200; before it they cost a correct cut in each school on 191–200), and the version reported
+is the later one whatever SEEDS said.
 """
 from __future__ import annotations
 
@@ -252,8 +252,8 @@ def tracking_section() -> str:
         "The held-out seeds were run on an earlier version of the test "
         "too (without the per-line error scales and the straddle condition, which were then "
         "chosen on the development seeds alone, where the straddle condition removed an along-fan "
-        "cut of one fish's track, and the per-line scales changed nothing on 201–209 and cost a "
-        "correct cut in each school on 191–200, kept as the sounder statistics): crossing school "
+        "cut of one fish's track; with it the per-line scales change nothing on 201–209 or "
+        "191–200, before it they cost a correct cut in each school on 191–200): crossing school "
         "92 for 96 (−4.2 %), along the fan 199 for 192 (+3.6 %); the version reported is the "
         "later one.\n"
         + per_seed_text
