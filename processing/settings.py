@@ -210,6 +210,15 @@ class TrackSettings(ConfigModel):
     track, not two (processing.tracking.filters.track_detections). False: every hit counts."""
     gate_probability: Real = Field(0.99, gt=0.5, lt=1)
     """Chi-square gate (3 degrees of freedom) on the innovation's Mahalanobis distance."""
+    split: Literal["none", "fan_crossing"] = "fan_crossing"
+    """Track-splitting part (processing/tracking/splitting.py): "fan_crossing" cuts a finished
+    track where its detections step back through the fan's thin dimension against the track's
+    own motion through it (a second fish entering behind the first, one echo to the gate);
+    "none" keeps every track whole."""
+    split_probability: Real = Field(0.999, gt=0.5, lt=1)
+    """The fan-crossing split's test: the probability whose chi-square quantile the two lines'
+    likelihood ratio against one (2 degrees of freedom), each line's motion through the fan and
+    the step back (1 degree of freedom each) must exceed."""
     accel_sd_m_s2: PositiveReal = Field(0.05, le=100)
     """Process noise: white acceleration of this spectral density √q (m/s² per √(1/s)). 0.05 suits
     schooling fish cruising nearly straight at body lengths per second; a larger value follows

@@ -1,4 +1,4 @@
-"""Fish tracks across pings: a tracker built of three replaceable parts, over 3-D detections.
+"""Fish tracks across pings: a tracker built of replaceable parts, over 3-D detections.
 
 The thesis counts per ping and names tracking (an αβ tracker) as its next step (§7). Here a
 detection is a point located in the world frame (range, azimuth and interferometric elevation
@@ -16,10 +16,13 @@ framework, each chosen by a setting of ``track`` and tested on its own:
 * **track management** (:mod:`processing.tracking.management`): M-of-N confirmation
   (``confirm_hits`` of ``confirm_window``), deletion after ``max_misses`` consecutive misses,
   births from the detections no track takes.
+* **track splitting** (:mod:`processing.tracking.splitting`, ``split``): once tracking ends, a
+  confirmed track whose detections step back through the fan's thin dimension against its own
+  motion through it (a second fish entering behind the first, one echo to the gate) is cut there.
 
 Ping by ping: every live track predicts its state to the ping's time; detections are gated and
 assigned; assigned tracks update, the others coast; unassigned detections start tentative tracks;
-management confirms, drops and ends tracks. Confirmed tracks are smoothed (RTS for the Kalman
+management confirms, drops and ends tracks. Confirmed tracks are split, then smoothed (RTS for the Kalman
 filter; the αβ tracker's positions are its filtered ones). Pure functions over arrays and a
 small :class:`Track` record; no state outside a call, so the result depends only on the
 detections and the settings.
@@ -41,8 +44,10 @@ from processing.tracking.association import (gate_threshold, gated_costs, global
                                              jpda_weights)
 from processing.tracking.management import MOfN
 from processing.tracking.motion import cv_matrices, motion_model
+from processing.tracking.splitting import NoSplit
 
-__all__ = ["Track", "track_detections", "measurement_covariance", "resolution_covariance", "cv_matrices"]
+__all__ = ["Track", "track_detections", "measurement_covariance", "resolution_covariance", "fan_normal",
+           "cv_matrices"]
 
 
 @dataclass
@@ -193,7 +198,8 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
                      accel_sd_m_s2: float = 0.5, initial_speed_sd_m_s: float = 1.0, alpha: float = 0.5,
                      beta: float = 0.2, confirm_hits: int = 3, confirm_window: int = 4,
                      max_misses: int = 2, resolution_m2=None, resolution_cells: float = 1.0,
-                     confirm_resolved: bool = False, motion=None, management=None):
+                     confirm_resolved: bool = False, motion=None, management=None, through_fan=None,
+                     fan_width_m=None, fan_centre_m=None, split=None):
     """Tracks of detections across pings.
 
     Parameters
@@ -240,6 +246,16 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
     management : MOfN, optional
         The track-management part used instead of ``confirm_hits``, ``confirm_window``,
         ``max_misses`` and ``initial_speed_sd_m_s``.
+    through_fan : array_like, shape (n, 3), optional
+        Each detection's direction through the fan (unit vector of increasing elevation, world
+        frame; :func:`fan_normal`): what the splitting part reads a track's motion through the
+        fan along. None: no splitting.
+    split : object, optional
+        The track-splitting part (``breaks(time_s, through_fan_m, variance_m2)``;
+        :mod:`processing.tracking.splitting`), applied to every confirmed track once tracking
+        ends: each part it cuts becomes a track of its own, its states filtered again from its
+        first detection (born as management births a track, then the motion part's updates with
+        the covariances the track used). None: no splitting.
 
     Returns
     -------
@@ -372,12 +388,95 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
     done.extend(tr for tr in live if tr.confirmed)
     for tr in done:
         _trim(tr)
+    if split is not None and not isinstance(split, NoSplit) and through_fan is not None:
+        normal = np.asarray(through_fan, float).reshape(-1, 3)
+        if len(normal) != len(pos):
+            raise ValueError("through_fan must have one row per detection")
+        if fan_width_m is None:
+            raise ValueError("splitting tracks needs fan_width_m (the fan's thickness at each detection)")
+        width = np.broadcast_to(np.asarray(fan_width_m, float), (len(pos),))
+        centre = np.zeros(len(pos)) if fan_centre_m is None else np.broadcast_to(
+            np.asarray(fan_centre_m, float), (len(pos),))
+        parts = []
+        for tr in done:
+            pieces = _split(tr, split, normal, centre, width, pos, motion, management, next_id)
+            next_id += len(pieces) - 1
+            parts.extend(pieces)
+        done = parts
     for tr in done:
         tr.smoothed = motion.smooth(tr.x, tr.P, tr.x_pred, tr.P_pred, tr.times)
-    done.sort(key=lambda tr: tr.track_id)
+    done.sort(key=lambda tr: (tr.pings[0], tr.track_id))
     for new_id, tr in enumerate(done):
         tr.track_id = new_id
     return done
+
+
+def fan_normal(n: int, rotation=None):
+    """The direction through the fan at each of ``n`` detections: the sonar's elevation axis
+    (its y axis, towards which elevation increases at broadside) in world coordinates, so that
+    u = n·z is a detection's position across the fan's thin dimension, r sin φ up to the
+    sonar's own position.
+
+    Parameters
+    ----------
+    n : int
+        Number of detections.
+    rotation : ndarray, shape (3, 3) or (n, 3, 3), optional
+        Sonar axes in world coordinates (columns) at each detection's ping; None: identity.
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+        Unit vectors (world frame).
+    """
+    if rotation is None:
+        return np.tile([0.0, 1.0, 0.0], (int(n), 1))
+    R = np.asarray(rotation, float)
+    return np.broadcast_to(R[..., :, 1], (int(n), 3)).copy()
+
+
+def _split(tr: Track, split, normal, centre, width, pos, motion, management, next_id):
+    """``tr`` cut where ``split`` finds a second fish: the first part keeps its states (the
+    filter is causal), each later part is filtered again from its first detection; the later
+    parts take ids from ``next_id`` on."""
+    at = [i for i, j in enumerate(tr.detection) if j >= 0]
+    if len(at) < 2:
+        return [tr]
+    det = np.array([tr.detection[i] for i in at], int)
+    n = normal[det]
+    u = np.einsum("ki,ki->k", n, pos[det]) - centre[det]
+    var = np.einsum("ki,kij,kj->k", n, np.array([tr.R[i] for i in at]), n)
+    cuts = split.breaks(np.array([tr.times[i] for i in at]), u, var, width[det])
+    if not cuts:
+        return [tr]
+    starts = [at[c] for c in cuts]
+    bounds = [0] + starts + [len(tr.pings)]
+    first = Track(tr.track_id, confirmed=True)
+    for name in ("pings", "detection", "x", "P", "x_pred", "P_pred", "times", "R"):
+        setattr(first, name, getattr(tr, name)[:starts[0]])
+    _trim(first)
+    out = [first]
+    for k, (a, b) in enumerate(zip(bounds[1:-1], bounds[2:])):
+        j0 = tr.detection[a]
+        x, P = management.birth(pos[j0], tr.R[a])
+        part = Track(next_id + k, [tr.pings[a]], [j0], [x], [P], [x], [P], [tr.times[a]], confirmed=True,
+                     R=[tr.R[a]])
+        for i in range(a + 1, b):
+            dt = tr.times[i] - part.times[-1]
+            xp, Pp = motion.predict(part.x[-1], part.P[-1], dt)
+            j = tr.detection[i]
+            if j >= 0:
+                x, P = motion.update(xp, Pp, pos[j], tr.R[i], dt)
+            else:
+                x, P = xp, Pp
+            for name, val in (("pings", tr.pings[i]), ("detection", j), ("x", x), ("P", P), ("x_pred", xp),
+                              ("P_pred", Pp), ("times", tr.times[i]), ("R", tr.R[i])):
+                getattr(part, name).append(val)
+        _trim(part)
+        out.append(part)
+    for part in out:
+        part.hits = sum(j >= 0 for j in part.detection)
+    return out
 
 
 def _trim(tr: Track):

@@ -101,7 +101,8 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     """
     from processing.pipeline import RecordChain
     from processing.records import with_detections
-    from processing.tracking.filters import measurement_covariance, resolution_covariance, track_detections
+    from processing.tracking.filters import fan_normal, measurement_covariance, resolution_covariance, track_detections
+    from processing.tracking.splitting import splitter
     chain = RecordChain(tree, settings)
     tree, st = chain.tree, chain.settings
     ts_ = st.track
@@ -134,6 +135,11 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
                                  azimuth_resolution_rad=detected.azimuth_resolution_rad,
                                  elevation_resolution_rad=_elevation_beamwidth_rad(tree, detected.volume),
                                  rotation=poses.rotation_of(rows))
+    normal = fan_normal(len(rows), poses.rotation_of(rows))
+    fan_width = np.asarray(det["range_m"], float) * _elevation_beamwidth_rad(tree, detected.volume)
+    fan_centre = (np.zeros(len(rows)) if poses.position is None else
+                  np.einsum("ki,ki->k", normal, np.broadcast_to(poses.position if poses.position.ndim == 1
+                                                                else poses.position[rows], normal.shape)))
     targets = chain.single_targets(detected)
     ts_u, ts_c = targets["ts_uncomp_db"], targets["ts_comp_db"]
     single = np.asarray(targets["single_target"], bool)
@@ -155,7 +161,11 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
                               gate_probability=ts_.gate_probability, accel_sd_m_s2=ts_.accel_sd_m_s2,
                               initial_speed_sd_m_s=ts_.initial_speed_sd_m_s, alpha=ts_.alpha,
                               beta=ts_.beta, confirm_hits=ts_.confirm_hits,
-                              confirm_window=ts_.confirm_window, max_misses=ts_.max_misses)
+                              confirm_window=ts_.confirm_window, max_misses=ts_.max_misses,
+                              through_fan=normal[keep], fan_width_m=fan_width[keep],
+                              fan_centre_m=fan_centre[keep],
+                              split=splitter(ts_.split, probability=ts_.split_probability,
+                                             min_hits=ts_.confirm_hits))
     volume = detected.volume
     ping_index_of_row = chain.ping_index
     # flat track points
