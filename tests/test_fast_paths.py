@@ -57,12 +57,38 @@ def test_a_new_sea_keeps_the_still_meshes_scene():
     floor = first.meshes[0]
     sea = SceneMesh("sea", "boundary", "surface", _grid(-2.5, 30.0, 31, 0.4, 3), None, "sea",
                     surface=object())
+    first.first_hit(*_rays(seed=7))                       # rays that build its sea's scene
     again = RayCaster([floor, sea], previous=first)
     assert again._parts[0][0] is first._parts[0][0]      # the floor's BVH, not rebuilt
-    assert again._parts[1][0] is not first._parts[1][0]
     o, d = _rays(seed=8)
     fresh = RayCaster([floor, SceneMesh("sea", "boundary", "surface", sea.mesh, None, "sea")])
     np.testing.assert_array_equal(again.first_hit(o, d).face, fresh.first_hit(o, d).face)
+    assert again._parts[1][0] is not first._parts[1][0]
+    # the same arrays as a caster made from nothing (the previous ones, the sea's rows anew)
+    for name in ("vertices", "faces", "face_mesh", "face_normal", "face_plane"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(fresh, name))
+
+
+def test_a_sea_no_ray_can_reach_is_never_built():
+    # rays that stay below the sea (the sea at z = -2 ± 0.4, the rays at z >= 0) cannot hit
+    # it: its scene is not built, and the hits and occlusion are those of a caster with it
+    floor, sea = _meshes()
+    lazy = RayCaster([floor, sea])
+    whole = RayCaster(_meshes(moving=False))
+    o, d = _rays(seed=11)
+    d[:, 2] = np.abs(d[:, 2]) + 1.0                      # every ray heads down, to the floor
+    d[:, :2] *= 0.3
+    a, b = lazy.first_hit(o, d), whole.first_hit(o, d)
+    ends = np.random.default_rng(12).uniform(-10, 10, (2000, 3)) * [1, 1, 0] + [0, 0, 15.0]
+    blocked = lazy.occluded(np.zeros_like(ends), ends)
+    assert lazy._parts[1][0] is None                     # never built
+    assert a.hit.mean() > 0.8                            # the floor is hit
+    np.testing.assert_array_equal(a.face, b.face)
+    np.testing.assert_array_equal(a.distance, b.distance)
+    np.testing.assert_array_equal(blocked, whole.occluded(np.zeros_like(ends), ends))
+    # a ray up, to the sea: now it is built, and hit
+    up = lazy.first_hit(np.zeros((1, 3)), np.array([[0.1, 0.0, -1.0]]))
+    assert lazy._parts[1][0] is not None and up.mesh[0] == 1
 
 
 def _az_el(points, origin):

@@ -550,18 +550,46 @@ def _blocks(V, F, N, size: int = 16):
     cosv = np.clip(np.einsum("ij,ij->i", nrm, axis[owner]), -1.0, 1.0)
     spread = np.where(na > 0, np.arccos(np.minimum.reduceat(cosv, at)), np.pi)
     # each block's distinct vertices, and each facet's three as indices into its block's list
-    key = owner.astype(np.int64) * len(V) + fv
-    srt = np.sort(key)        # a sort, not numpy's hashed unique: several times faster here
-    uniq = srt[np.concatenate([[True], srt[1:] != srt[:-1]])]
-    bvert = (uniq % len(V)).astype(np.int64)
-    bvstart = np.searchsorted(uniq, np.arange(at.size + 1, dtype=np.int64) * len(V)).astype(np.int64)
-    local = (np.searchsorted(uniq, key) - bvstart[owner]).reshape(-1, 3).astype(np.int64)
+    bvert, bvstart, local = _block_vertices(np.ascontiguousarray(fv, np.int64), 3 * starts)
     # the tight test's spheres: the smooth surface lifts a facet's point by at most half its
     # longest edge times the sine between a vertex normal and the facet's (Phong, α = ½)
     sag = _facet_sag(V, F, N, order)
     tight_radius = (radius + np.maximum.reduceat(sag, starts[:-1])) * (1 + 1e-9) + 1e-12
     return (order.astype(np.int64), starts, centre, radius, axis, spread, bvert, bvstart,
             np.ascontiguousarray(local), tight_radius, *_tree(centre, tight_radius, axis, spread))
+
+
+@nb.njit(cache=True, nogil=True)
+def _block_vertices(fv, at):
+    """Each block's distinct vertices in ascending order (``fv[at[b]:at[b + 1]]``: its facets'
+    vertices, three per facet), where each block's list starts, and each facet's three
+    vertices as indices into its block's list: (bvert, bvstart, local (n_f, 3)). A block holds
+    a few dozen vertices: a small sort each, not one sort of them all (the moving sea's blocks
+    are made every ping)."""
+    n_b = at.shape[0] - 1
+    bvert = np.empty(fv.shape[0], np.int64)
+    bvstart = np.empty(n_b + 1, np.int64)
+    local = np.empty(fv.shape[0], np.int64)
+    n = 0
+    for b in range(n_b):
+        bvstart[b] = n
+        srt = np.sort(fv[at[b]:at[b + 1]])
+        for i in range(srt.shape[0]):
+            if i == 0 or srt[i] != srt[i - 1]:
+                bvert[n] = srt[i]
+                n += 1
+        m = n - bvstart[b]
+        for i in range(at[b], at[b + 1]):
+            lo, hi = 0, m                  # the vertex's place in its block's sorted list
+            while lo < hi:
+                mid = (lo + hi) // 2
+                if bvert[bvstart[b] + mid] < fv[i]:
+                    lo = mid + 1
+                else:
+                    hi = mid
+            local[i] = lo
+    bvstart[n_b] = n
+    return bvert[:n].copy(), bvstart, local.reshape(-1, 3)
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
@@ -573,14 +601,17 @@ def _facet_sag(V, F, N, order):
     for i in range(order.shape[0]):
         f = order[i]
         a, b, c = F[f, 0], F[f, 1], F[f, 2]
-        e1 = V[b] - V[a]
-        e2 = V[c] - V[a]
-        e3 = V[c] - V[b]
-        nx = e1[1] * e2[2] - e1[2] * e2[1]
-        ny = e1[2] * e2[0] - e1[0] * e2[2]
-        nz = e1[0] * e2[1] - e1[1] * e2[0]
+        # scalars, not small arrays: no allocation per facet (the moving sea's, every ping)
+        e1x, e1y, e1z = V[b, 0] - V[a, 0], V[b, 1] - V[a, 1], V[b, 2] - V[a, 2]
+        e2x, e2y, e2z = V[c, 0] - V[a, 0], V[c, 1] - V[a, 1], V[c, 2] - V[a, 2]
+        e3x, e3y, e3z = V[c, 0] - V[b, 0], V[c, 1] - V[b, 1], V[c, 2] - V[b, 2]
+        nx = e1y * e2z - e1z * e2y
+        ny = e1z * e2x - e1x * e2z
+        nz = e1x * e2y - e1y * e2x
         nl = np.sqrt(nx * nx + ny * ny + nz * nz)
-        edge = max(np.sqrt(np.sum(e1 * e1)), np.sqrt(np.sum(e2 * e2)), np.sqrt(np.sum(e3 * e3)))
+        edge = max(np.sqrt(e1x * e1x + e1y * e1y + e1z * e1z),
+                   np.sqrt(e2x * e2x + e2y * e2y + e2z * e2z),
+                   np.sqrt(e3x * e3x + e3y * e3y + e3z * e3z))
         worst = 0.0
         if nl > 0.0:
             for v in (a, b, c):
