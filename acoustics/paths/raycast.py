@@ -81,15 +81,19 @@ def _refine(face, o, d, face_plane, face_mesh, limit, out_face, out_mesh, out_t,
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _may_reach(o32, d32, dists, lo, hi):
+def _may_reach(o32, d32, dists, centre, axes, lo, hi):
     """Whether any ray (origin ``o32``, unit direction ``d32``, float32; as far as ``dists``,
-    or without end when None) meets the box [lo, hi] (float64 slabs)."""
+    or without end when None) meets the box [lo, hi] in the frame of ``axes`` (columns) about
+    ``centre`` (float64 slabs)."""
     for i in range(o32.shape[0]):
         t0 = 0.0
         t1 = np.inf if dists is None else float(dists[i])
         for j in range(3):
-            o = float(o32[i, j])
-            d = float(d32[i, j])
+            o = 0.0
+            d = 0.0
+            for m in range(3):
+                o += (float(o32[i, m]) - centre[m]) * axes[m, j]
+                d += float(d32[i, m]) * axes[m, j]
             if d == 0.0:
                 if o < lo[j] or o > hi[j]:
                     t0 = 1.0
@@ -352,13 +356,17 @@ class RayCaster:
         return scene, faces.astype(np.int32), [self.meshes[i] for i in mesh_idx], still
 
     def _box(self, mesh_idx):
-        """The axis-aligned box (lo (3,), hi (3,); m) of the meshes ``mesh_idx``, grown by a
-        margin far above Embree's float32 rounding (1 mm and 1e-5 of the scene's extent)."""
-        v = [np.asarray(self.meshes[i].mesh.vertices, float) for i in mesh_idx]
-        lo = np.min([x.min(axis=0) for x in v], axis=0)
-        hi = np.max([x.max(axis=0) for x in v], axis=0)
+        """The box of the meshes ``mesh_idx`` along their principal axes (a sea tilted in the
+        sonar's frame is a thin slab in its own): (centre (3,), axes (3, 3) as columns, lo (3,),
+        hi (3,); m), grown by a margin far above Embree's float32 rounding (1 mm and 1e-5 of
+        the scene's extent)."""
+        v = np.concatenate([np.asarray(self.meshes[i].mesh.vertices, float) for i in mesh_idx])
+        centre = v.mean(axis=0)
+        axes = np.linalg.svd(v - centre, full_matrices=False)[2].T
+        local = (v - centre) @ axes
         grow = 1e-3 + 1e-5 * self.extent_m + 100 * self.eps_m
-        return lo - grow, hi + grow
+        return (centre, np.ascontiguousarray(axes), local.min(axis=0) - grow,
+                local.max(axis=0) + grow)
 
     def _part(self, k, o32, d32, dists):
         """Part ``k``'s Embree scene, built now if it is a lazy one that a ray of this batch
@@ -366,8 +374,8 @@ class RayCaster:
         scene = self._parts[k][0]
         if scene is not None:
             return scene
-        idx, (lo, hi) = self._lazy[k]
-        if not _may_reach(o32, d32, dists, lo, hi):
+        idx, (centre, axes, lo, hi) = self._lazy[k]
+        if not _may_reach(o32, d32, dists, centre, axes, lo, hi):
             return None
         with self._lock:
             if self._parts[k][0] is None:
