@@ -121,3 +121,21 @@ def test_windowed_specular_search_finds_every_bounce_inside_its_window():
     pad = 0.2                               # a block's angular size at these ranges
     assert np.all((az_w > ext[0] - pad) & (az_w < ext[1] + pad) & (el_w > ext[2] - pad) & (el_w < ext[3] + pad))
     assert len(win) < len(full)
+
+
+def test_a_window_leaves_out_a_surface_near_its_origin_that_lies_outside_it():
+    # a wavy sea 2 m above a source whose window looks down (30 deg wide): the sea's blocks near
+    # the source subtend more than the window's margin, so their facets are windowed one by one
+    # and none reaches in; the full search finds the sea's bounce points all the same
+    m = _grid(-2.0, 30.0, 31, 0.2, 6)
+    nrm = vertex_normals(m.vertices, m.faces)
+    src = np.zeros(3)
+    rng = np.random.default_rng(13)
+    tgt = np.column_stack([rng.uniform(-6, 6, 40), rng.uniform(-6, 6, 40), rng.uniform(5, 12, 40)])
+    S = np.broadcast_to(src, tgt.shape)
+    ext = (-0.26, 0.26, -0.26, 0.26)        # about +z, straight down
+    full = specular_points(m.vertices, m.faces, nrm, S, tgt)
+    win = specular_points(m.vertices, m.faces, nrm, S, tgt, window=(src, np.eye(3), ext))
+    az, el = _az_el(full.point_m, src)
+    assert len(full) >= 20 and not np.any((np.abs(az) < 0.5) & (np.abs(el) < 0.5))
+    assert len(win) == 0

@@ -89,13 +89,19 @@ def candidate_facets(vertices, faces, normals, sources_m, receivers_m, *, tolera
         blocks, N = blocks                  # the caller's, with the unit normals they were made from
     else:
         blocks, N = _blocks_of(V, F, normals)
-    if height_bound is not None:
+    allowed = np.ones(blocks[1].size - 1, np.uint8)
+    facet_ok = None
+    if window is not None:
+        allowed, facet_ok = _window_blocks(blocks, window, V, F)
+    if not allowed.any():
+        return N, np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 2))
+    if height_bound is not None:       # the same spheres (the window's), grown bounds
         blocks = _field_blocks_of(V, F, blocks, *height_bound)
         tight = True
-    allowed = np.ones(blocks[1].size - 1, np.uint8)
-    if window is not None:
-        allowed = _window_blocks(blocks, window)
     pair, face, st = _search_split(V, F, N, S, P, tolerance, blocks, cap, allowed, tight)
+    if facet_ok is not None:
+        keep = facet_ok[face]
+        pair, face, st = pair[keep], face[keep], st[keep]
     return N, pair, face, st
 
 
@@ -807,12 +813,32 @@ def _search_split(V, F, N, S, P, tol, blocks, cap, allowed, tight):
     return pair[o], face[o], st[o]
 
 
-def _window_blocks(blocks, window):
-    """1 for the blocks whose bounding sphere, seen from the window's origin, reaches into its
-    angular window (az = atan2(x, z), el = asin(y/r) in the window's axes), else 0."""
-    origin, rotation, (az_lo, az_hi, el_lo, el_hi) = window
-    centre, radius = blocks[2], blocks[3]
-    c = (centre - np.asarray(origin, float)) @ np.asarray(rotation, float)
+#: a block seen under more than this half-angle (rad) from a window's origin (one near it: a
+#: sea above the sonar) is windowed facet by facet: its sphere alone would let facets far
+#: outside the window in
+_NEAR_BLOCK_RAD = 0.05
+
+
+@nb.njit(cache=True, nogil=True)
+def _facet_spheres(V, F, f):
+    """Facets ``f``' spheres: centroid (k, 3) and farthest vertex from it (k,) (m)."""
+    cen = np.empty((f.shape[0], 3))
+    rad = np.empty(f.shape[0])
+    for i in range(f.shape[0]):
+        for j in range(3):
+            cen[i, j] = (V[F[f[i], 0], j] + V[F[f[i], 1], j] + V[F[f[i], 2], j]) / 3.0
+        r2 = 0.0
+        for q in range(3):
+            v = F[f[i], q]
+            d0, d1, d2 = V[v, 0] - cen[i, 0], V[v, 1] - cen[i, 1], V[v, 2] - cen[i, 2]
+            r2 = max(r2, d0 * d0 + d1 * d1 + d2 * d2)
+        rad[i] = np.sqrt(r2)
+    return cen, rad
+
+
+def _inside_window(c, radius, az_lo, az_hi, el_lo, el_hi):
+    """Whether spheres (centres ``c`` (n, 3) in the window's axes, ``radius`` (n,)) reach into
+    the angular window; and each one's angular radius (π for one holding the origin)."""
     r = np.linalg.norm(c, axis=1)
     pad = np.arcsin(np.clip(radius / np.maximum(r, 1e-300), 0.0, 1.0))
     pad = np.where(r > radius, pad, np.pi)          # the origin inside the sphere: keep
@@ -820,4 +846,40 @@ def _window_blocks(blocks, window):
     az = np.arctan2(c[:, 0], c[:, 2])
     inside = ((el >= el_lo - pad) & (el <= el_hi + pad) & (az >= az_lo - pad)
               & (az <= az_hi + pad))
-    return inside.astype(np.uint8)
+    return inside, pad
+
+
+def _window_blocks(blocks, window, vertices=None, faces=None):
+    """1 for the blocks whose bounding sphere, seen from the window's origin, reaches into its
+    angular window (az = atan2(x, z), el = asin(y/r) in the window's axes), else 0. With the
+    mesh (``vertices``, ``faces``), a block seen under more than ``_NEAR_BLOCK_RAD`` is taken
+    facet by facet (each facet's own sphere: its centroid, its farthest vertex): such a block
+    is kept when a facet of it reaches into the window. Returns (allowed, facet_ok): facet_ok
+    (n_f,) bool, False for the facets of the kept near blocks that do not reach into it (None
+    without the mesh, or when no facet was left out)."""
+    origin, rotation, (az_lo, az_hi, el_lo, el_hi) = window
+    origin = np.asarray(origin, float)
+    rotation = np.asarray(rotation, float)
+    centre, radius = blocks[2], blocks[3]
+    c = (centre - origin) @ rotation
+    inside, pad = _inside_window(c, radius, az_lo, az_hi, el_lo, el_hi)
+    if vertices is None:
+        return inside.astype(np.uint8), None
+    near = np.flatnonzero(inside & (pad > _NEAR_BLOCK_RAD))
+    if near.size == 0:
+        return inside.astype(np.uint8), None
+    order, starts = blocks[0], blocks[1]
+    cnt = starts[near + 1] - starts[near]
+    # the near blocks' facets, in block order
+    pos = np.repeat(starts[near] - np.cumsum(cnt) + cnt, cnt) + np.arange(int(cnt.sum()))
+    f = order[pos]
+    cen, rad = _facet_spheres(vertices, faces, f)
+    ok, _ = _inside_window((cen - origin) @ rotation, rad, az_lo, az_hi, el_lo, el_hi)
+    if ok.all():
+        return inside.astype(np.uint8), None
+    facet_ok = np.ones(faces.shape[0], bool)
+    facet_ok[f[~ok]] = False
+    # a near block none of whose facets reaches in is not searched
+    any_ok = np.maximum.reduceat(ok.astype(np.uint8), np.cumsum(cnt) - cnt) > 0
+    inside[near[~any_ok]] = False
+    return inside.astype(np.uint8), facet_ok
