@@ -17,6 +17,8 @@ import numba as nb
 import numpy as np
 
 from acoustics.paths.specular_field import height_field_blocks
+from acoustics.paths.specular_blocks import block_vertices, facet_sag
+from acoustics.paths.specular_window import window_blocks
 
 __all__ = ["candidate_facets", "search_blocks", "unit_rows"]
 
@@ -32,7 +34,7 @@ _unit = unit_rows
 
 def candidate_facets(vertices, faces, normals, sources_m, receivers_m, *, tolerance: float,
                      cull: bool = True, window=None, tight: bool = True, blocks=None,
-                     height_bound=None):
+                     height_bound=None, near_facets: bool = False):
     """Candidate bounce facets of every pair.
 
     Parameters
@@ -50,6 +52,9 @@ def candidate_facets(vertices, faces, normals, sources_m, receivers_m, *, tolera
         The blocked, tree-walked search (False: every facet, the reference).
     window : optional
         As :func:`acoustics.paths.specular.specular_points`' ``window`` (needs ``cull``).
+    near_facets : bool
+        With a window: a block seen under more than ``_NEAR_BLOCK_RAD`` from its origin is
+        windowed facet by facet (acoustics/paths/specular_window.py); else by its sphere.
     tight : bool
         The tight block bound (candidates refined on the mesh's smooth surface and tested
         there); else the cone with a 0.1 rad margin.
@@ -92,7 +97,8 @@ def candidate_facets(vertices, faces, normals, sources_m, receivers_m, *, tolera
     allowed = np.ones(blocks[1].size - 1, np.uint8)
     facet_ok = None
     if window is not None:
-        allowed, facet_ok = _window_blocks(blocks, window, V, F)
+        allowed, facet_ok = (window_blocks(blocks, window, V, F) if near_facets
+                             else window_blocks(blocks, window))
     if not allowed.any():
         return N, np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 2))
     if height_bound is not None:       # the same spheres (the window's), grown bounds
@@ -556,77 +562,13 @@ def _blocks(V, F, N, size: int = 16):
     cosv = np.clip(np.einsum("ij,ij->i", nrm, axis[owner]), -1.0, 1.0)
     spread = np.where(na > 0, np.arccos(np.minimum.reduceat(cosv, at)), np.pi)
     # each block's distinct vertices, and each facet's three as indices into its block's list
-    bvert, bvstart, local = _block_vertices(np.ascontiguousarray(fv, np.int64), 3 * starts)
+    bvert, bvstart, local = block_vertices(np.ascontiguousarray(fv, np.int64), 3 * starts)
     # the tight test's spheres: the smooth surface lifts a facet's point by at most half its
     # longest edge times the sine between a vertex normal and the facet's (Phong, α = ½)
-    sag = _facet_sag(V, F, N, order)
+    sag = facet_sag(V, F, N, order)
     tight_radius = (radius + np.maximum.reduceat(sag, starts[:-1])) * (1 + 1e-9) + 1e-12
     return (order.astype(np.int64), starts, centre, radius, axis, spread, bvert, bvstart,
             np.ascontiguousarray(local), tight_radius, *_tree(centre, tight_radius, axis, spread))
-
-
-@nb.njit(cache=True, nogil=True)
-def _block_vertices(fv, at):
-    """Each block's distinct vertices in ascending order (``fv[at[b]:at[b + 1]]``: its facets'
-    vertices, three per facet), where each block's list starts, and each facet's three
-    vertices as indices into its block's list: (bvert, bvstart, local (n_f, 3)). A block holds
-    a few dozen vertices: a small sort each, not one sort of them all (the moving sea's blocks
-    are made every ping)."""
-    n_b = at.shape[0] - 1
-    bvert = np.empty(fv.shape[0], np.int64)
-    bvstart = np.empty(n_b + 1, np.int64)
-    local = np.empty(fv.shape[0], np.int64)
-    n = 0
-    for b in range(n_b):
-        bvstart[b] = n
-        srt = np.sort(fv[at[b]:at[b + 1]])
-        for i in range(srt.shape[0]):
-            if i == 0 or srt[i] != srt[i - 1]:
-                bvert[n] = srt[i]
-                n += 1
-        m = n - bvstart[b]
-        for i in range(at[b], at[b + 1]):
-            lo, hi = 0, m                  # the vertex's place in its block's sorted list
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if bvert[bvstart[b] + mid] < fv[i]:
-                    lo = mid + 1
-                else:
-                    hi = mid
-            local[i] = lo
-    bvstart[n_b] = n
-    return bvert[:n].copy(), bvstart, local.reshape(-1, 3)
-
-
-@nb.njit(cache=True, nogil=True, error_model="numpy")
-def _facet_sag(V, F, N, order):
-    """Per facet (in ``order``): the most the smooth surface lifts a point of it off its plane,
-    half its longest edge times the largest sine between a vertex normal and the facet's
-    normal (Phong, α = ½), plus 1e-6 of the edge (points found 1e-6 outside it)."""
-    out = np.empty(order.shape[0])
-    for i in range(order.shape[0]):
-        f = order[i]
-        a, b, c = F[f, 0], F[f, 1], F[f, 2]
-        # scalars, not small arrays: no allocation per facet (the moving sea's, every ping)
-        e1x, e1y, e1z = V[b, 0] - V[a, 0], V[b, 1] - V[a, 1], V[b, 2] - V[a, 2]
-        e2x, e2y, e2z = V[c, 0] - V[a, 0], V[c, 1] - V[a, 1], V[c, 2] - V[a, 2]
-        e3x, e3y, e3z = V[c, 0] - V[b, 0], V[c, 1] - V[b, 1], V[c, 2] - V[b, 2]
-        nx = e1y * e2z - e1z * e2y
-        ny = e1z * e2x - e1x * e2z
-        nz = e1x * e2y - e1y * e2x
-        nl = np.sqrt(nx * nx + ny * ny + nz * nz)
-        edge = max(np.sqrt(e1x * e1x + e1y * e1y + e1z * e1z),
-                   np.sqrt(e2x * e2x + e2y * e2y + e2z * e2z),
-                   np.sqrt(e3x * e3x + e3y * e3y + e3z * e3z))
-        worst = 0.0
-        if nl > 0.0:
-            for v in (a, b, c):
-                cv = abs(N[v, 0] * nx + N[v, 1] * ny + N[v, 2] * nz) / nl
-                worst = max(worst, np.sqrt(max(0.0, 1.0 - cv * cv)))
-        else:
-            worst = 1.0                  # a degenerate facet: any lift up to its size
-        out[i] = 0.5 * edge * worst + 1e-6 * edge
-    return out
 
 
 def _tree(centre, radius, axis, spread, fan: int = 8):
@@ -811,75 +753,3 @@ def _search_split(V, F, N, S, P, tol, blocks, cap, allowed, tight):
     pair, face, st, pos = (np.concatenate(col) for col in zip(*out))
     o = np.lexsort((pos, pair))
     return pair[o], face[o], st[o]
-
-
-#: a block seen under more than this half-angle (rad) from a window's origin (one near it: a
-#: sea above the sonar) is windowed facet by facet: its sphere alone would let facets far
-#: outside the window in
-_NEAR_BLOCK_RAD = 0.05
-
-
-@nb.njit(cache=True, nogil=True)
-def _facet_spheres(V, F, f):
-    """Facets ``f``' spheres: centroid (k, 3) and farthest vertex from it (k,) (m)."""
-    cen = np.empty((f.shape[0], 3))
-    rad = np.empty(f.shape[0])
-    for i in range(f.shape[0]):
-        for j in range(3):
-            cen[i, j] = (V[F[f[i], 0], j] + V[F[f[i], 1], j] + V[F[f[i], 2], j]) / 3.0
-        r2 = 0.0
-        for q in range(3):
-            v = F[f[i], q]
-            d0, d1, d2 = V[v, 0] - cen[i, 0], V[v, 1] - cen[i, 1], V[v, 2] - cen[i, 2]
-            r2 = max(r2, d0 * d0 + d1 * d1 + d2 * d2)
-        rad[i] = np.sqrt(r2)
-    return cen, rad
-
-
-def _inside_window(c, radius, az_lo, az_hi, el_lo, el_hi):
-    """Whether spheres (centres ``c`` (n, 3) in the window's axes, ``radius`` (n,)) reach into
-    the angular window; and each one's angular radius (π for one holding the origin)."""
-    r = np.linalg.norm(c, axis=1)
-    pad = np.arcsin(np.clip(radius / np.maximum(r, 1e-300), 0.0, 1.0))
-    pad = np.where(r > radius, pad, np.pi)          # the origin inside the sphere: keep
-    el = np.arcsin(np.clip(c[:, 1] / np.maximum(r, 1e-300), -1.0, 1.0))
-    az = np.arctan2(c[:, 0], c[:, 2])
-    inside = ((el >= el_lo - pad) & (el <= el_hi + pad) & (az >= az_lo - pad)
-              & (az <= az_hi + pad))
-    return inside, pad
-
-
-def _window_blocks(blocks, window, vertices=None, faces=None):
-    """1 for the blocks whose bounding sphere, seen from the window's origin, reaches into its
-    angular window (az = atan2(x, z), el = asin(y/r) in the window's axes), else 0. With the
-    mesh (``vertices``, ``faces``), a block seen under more than ``_NEAR_BLOCK_RAD`` is taken
-    facet by facet (each facet's own sphere: its centroid, its farthest vertex): such a block
-    is kept when a facet of it reaches into the window. Returns (allowed, facet_ok): facet_ok
-    (n_f,) bool, False for the facets of the kept near blocks that do not reach into it (None
-    without the mesh, or when no facet was left out)."""
-    origin, rotation, (az_lo, az_hi, el_lo, el_hi) = window
-    origin = np.asarray(origin, float)
-    rotation = np.asarray(rotation, float)
-    centre, radius = blocks[2], blocks[3]
-    c = (centre - origin) @ rotation
-    inside, pad = _inside_window(c, radius, az_lo, az_hi, el_lo, el_hi)
-    if vertices is None:
-        return inside.astype(np.uint8), None
-    near = np.flatnonzero(inside & (pad > _NEAR_BLOCK_RAD))
-    if near.size == 0:
-        return inside.astype(np.uint8), None
-    order, starts = blocks[0], blocks[1]
-    cnt = starts[near + 1] - starts[near]
-    # the near blocks' facets, in block order
-    pos = np.repeat(starts[near] - np.cumsum(cnt) + cnt, cnt) + np.arange(int(cnt.sum()))
-    f = order[pos]
-    cen, rad = _facet_spheres(vertices, faces, f)
-    ok, _ = _inside_window((cen - origin) @ rotation, rad, az_lo, az_hi, el_lo, el_hi)
-    if ok.all():
-        return inside.astype(np.uint8), None
-    facet_ok = np.ones(faces.shape[0], bool)
-    facet_ok[f[~ok]] = False
-    # a near block none of whose facets reaches in is not searched
-    any_ok = np.maximum.reduceat(ok.astype(np.uint8), np.cumsum(cnt) - cnt) > 0
-    inside[near[~any_ok]] = False
-    return inside.astype(np.uint8), facet_ok
