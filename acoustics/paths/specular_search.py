@@ -688,10 +688,12 @@ def search_blocks(vertices, faces, normals):
                    np.ascontiguousarray(np.asarray(faces, np.int64)), N), N
 
 
-def _pair_groups(S, P, size: int = 16):
+def _pair_groups(S, P, size: int = 32):
     """The pairs in groups for :func:`_candidates_tree`: one source per group and receivers
     close together (runs of ``size`` in Morton order of the receivers). Returns (perm, groups):
-    group g is ``perm[groups[g]:groups[g + 1]]``."""
+    group g is ``perm[groups[g]:groups[g + 1]]``. The groups' size changes only the time (each
+    pair is tested alone after its group's walk): 32 walks the tree half as often as 16 for
+    about as many blocks per pair (the hard survey's searches ~5 % faster)."""
     if (S == S[0]).all():                   # the usual case: one phase centre
         sid = np.zeros(S.shape[0], np.int64)
     else:
