@@ -7,7 +7,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-__all__ = ["block_vertices", "facet_sag"]
+__all__ = ["block_vertices", "facet_cells", "facet_sag"]
 
 
 @nb.njit(cache=True, nogil=True)
@@ -103,3 +103,40 @@ def facet_sag(V, F, N, order):
             worst = 1.0                  # a degenerate facet: any lift up to its size
         out[i] = 0.5 * edge * worst + 1e-6 * edge
     return out
+
+
+@nb.njit(cache=True, nogil=True)
+def facet_cells(V, F):
+    """Each facet's centroid quantised to 10 bits per axis, one scale for every axis (a thin
+    dimension, a sea's heights, gets few bits), for the facets' Morton order.
+
+    Parameters
+    ----------
+    V : ndarray, shape (n_v, 3)
+        Vertices (m).
+    F : ndarray of int64, shape (n_f, 3)
+
+    Returns
+    -------
+    ndarray of uint64, shape (n_f, 3)
+    """
+    n = F.shape[0]
+    cen = np.empty((n, 3))
+    for i in range(n):
+        for j in range(3):
+            cen[i, j] = (V[F[i, 0], j] + V[F[i, 1], j] + V[F[i, 2], j]) / 3.0
+    lo = np.empty(3)
+    hi = np.empty(3)
+    for j in range(3):
+        lo[j] = cen[0, j] if n else 0.0
+        hi[j] = lo[j]
+        for i in range(n):
+            lo[j] = min(lo[j], cen[i, j])
+            hi[j] = max(hi[j], cen[i, j])
+    scale = max(max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]), 1e-300)
+    q = np.empty((n, 3), np.uint64)
+    for i in range(n):
+        for j in range(3):
+            q[i, j] = np.uint64((cen[i, j] - lo[j]) / scale * 1023)
+    return q
+

@@ -17,7 +17,7 @@ import numba as nb
 import numpy as np
 
 from acoustics.paths.specular_field import height_field_blocks
-from acoustics.paths.specular_blocks import block_vertices, facet_sag
+from acoustics.paths.specular_blocks import block_vertices, facet_cells, facet_sag
 from acoustics.paths.specular_window import window_blocks
 
 __all__ = ["candidate_facets", "search_blocks", "unit_rows"]
@@ -543,13 +543,10 @@ def _morton(q):
 def _blocks(V, F, N, size: int = 16):
     """Facets in Morton (Z-curve) order of their centroids, cut into blocks of ``size``; each
     block's bounding sphere and its vertex normals' cone (axis, half-angle)."""
-    cen = V[F].mean(axis=1)
-    lo, hi = cen.min(axis=0), cen.max(axis=0)
     # one scale for every axis: a thin dimension (a sea's heights) gets few bits, not the top one
-    q = ((cen - lo) / max(float((hi - lo).max()), 1e-300) * 1023).astype(np.uint64)
-    order = np.argsort(_morton(q), kind="stable")
+    order = np.argsort(_morton(facet_cells(V, F)), kind="stable")
     starts = np.append(np.arange(0, len(F), size), len(F)).astype(np.int64)
-    fv = F[order].ravel()                                  # 3 vertices per facet, in order
+    fv = np.ascontiguousarray(F[order].ravel(), np.int64)  # 3 vertices per facet, in order
     at = 3 * starts[:-1]
     counts = np.diff(3 * starts)
     pts, nrm = V[fv], N[fv]
@@ -562,7 +559,7 @@ def _blocks(V, F, N, size: int = 16):
     cosv = np.clip(np.einsum("ij,ij->i", nrm, axis[owner]), -1.0, 1.0)
     spread = np.where(na > 0, np.arccos(np.minimum.reduceat(cosv, at)), np.pi)
     # each block's distinct vertices, and each facet's three as indices into its block's list
-    bvert, bvstart, local = block_vertices(np.ascontiguousarray(fv, np.int64), 3 * starts)
+    bvert, bvstart, local = block_vertices(fv, 3 * starts)
     # the tight test's spheres: the smooth surface lifts a facet's point by at most half its
     # longest edge times the sine between a vertex normal and the facet's (Phong, α = ½)
     sag = facet_sag(V, F, N, order)
