@@ -382,6 +382,15 @@ class RayCaster:
                 self._parts[k] = self._build_part(idx, self._robust, still=False)
         return self._parts[k][0]
 
+    def commit(self):
+        """Build the Embree scenes made so far (their BVHs: Embree builds one on its first
+        query), so that no later batch pays for it; casts no counted ray."""
+        o = np.zeros((1, 3), np.float32)
+        d = np.array([[0.0, 0.0, 1.0]], np.float32)
+        for scene, _, _, _ in self._parts:
+            if scene is not None:
+                scene.run(o, d, query="OCCLUDED")
+
     def _still_part(self, meshes, mesh_idx):
         """This caster's scene of still meshes, if ``meshes[mesh_idx]`` are the same objects at
         the same face offsets (so its face indices hold in the new caster), else None."""
