@@ -977,7 +977,7 @@ def specular_search():
     return ("## Specular search: blocks and a tree of them vs every facet (`specular_points(cull=...)`)\n\n"
             "The specular search (acoustics/paths/specular.py) tests facets in blocks of 16 and walks "
             "a tree over the blocks, skipping where the legs' bisector cannot meet the surface normal; "
-            "targets go in groups of 16 that walk the tree once. On the mesh's smooth surface "
+            "targets go in groups of 32 that walk the tree once. On the mesh's smooth surface "
             "(Newton steps on the mesh) the skip is tight: the bisector stays, over a block's sphere "
             "(grown by the smooth surface's lift off its facets), farther from the block's normal cone "
             "than the residual test of a bounce point allows; with an exact surface (the moving sea, "

@@ -143,3 +143,43 @@ def test_a_window_leaves_out_a_surface_near_its_origin_that_lies_outside_it():
     # by the blocks' spheres alone (the setting off) the near blocks let some of them in
     blocky = specular_points(m.vertices, m.faces, nrm, S, tgt, window=(src, np.eye(3), ext))
     assert 0 < len(blocky) < len(full)
+
+
+ROUGH = """name: prepare
+medium: {sound_speed_m_s: 1500}
+pings: {count: 2}
+targets: {points: [{position_m: [1.0, 0.5, 14.0]}, {position_m: [-1.5, 0.2, 12.0]},
+                   {position_m: [0.4, -1.0, 16.0]}]}
+boundaries:
+  - {name: floor, role: floor,
+     mesh: {shape: rough_floor, depth_m: 20.0, center_m: [0.0, 0.0], size_m: [16.0, 16.0],
+            resolution_m: 0.5, rms_height_m: 0.1, correlation_length_m: 1.5, seed: 3},
+     reflection: {model: rayleigh, density_kg_m3: 1900, sound_speed_m_s: 1700},
+     scattering: {law: lambert, mu_db: -27}}
+effects: {max_bounces: 1, reverberation: {enabled: true, rays_per_square_degree: 20}}
+"""
+
+
+def test_a_runs_preparation_changes_no_ping():
+    # what a run makes once (the floor's BVH, its vertex normals and search blocks, the
+    # reverberation fan) is made before the first ping, in rays_build: the pings are the same
+    # bits as when each is made where it is first needed
+    import warnings
+
+    from acoustics.scene import SceneWarning, scene_from_text
+    from acoustics.simulation.ping import simulate_ping
+    from acoustics.simulation.setup import RunCache, make_setup
+    from acoustics.simulation.stages import StageLog
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SceneWarning)
+        setup = make_setup(scene_from_text(ROUGH))
+    first, lazy = RunCache(setup), RunCache(setup)
+    lazy.ray_scene.prepared = True                       # never prepared: made as needed
+    log = StageLog()
+    a = simulate_ping(setup, 0, cache=first, log=log)[0]
+    b = simulate_ping(setup, 0, cache=lazy)[0]
+    assert first.ray_scene.prepared and "rays_build" in log
+    assert first.ray_scene._block_cache and len(lazy.ray_scene.last_specular) > 0
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(simulate_ping(setup, 1, cache=first)[0],
+                                  simulate_ping(setup, 1, cache=lazy)[0])
