@@ -7,7 +7,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-__all__ = ["block_vertices", "facet_cells", "facet_sag"]
+__all__ = ["block_spheres", "block_vertices", "facet_cells", "facet_sag"]
 
 
 @nb.njit(cache=True, nogil=True)
@@ -140,3 +140,82 @@ def facet_cells(V, F):
             q[i, j] = np.uint64((cen[i, j] - lo[j]) / scale * 1023)
     return q
 
+
+
+@nb.njit(cache=True, nogil=True)
+def _pairwise(a, lo, n, col):
+    """numpy's pairwise sum of ``a[lo:lo + n, col]`` (its order of additions, so the same
+    bits as numpy's reductions: eight running sums below 128 terms, halves above)."""
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += a[lo + i, col]
+        return res
+    if n <= 128:
+        r = np.empty(8)
+        for j in range(8):
+            r[j] = a[lo + j, col]
+        i = 8
+        while i < n - (n % 8):
+            for j in range(8):
+                r[j] += a[lo + i + j, col]
+            i += 8
+        res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+        while i < n:
+            res += a[lo + i, col]
+            i += 1
+        return res
+    n2 = n // 2
+    n2 -= n2 % 8
+    return _pairwise(a, lo, n2, col) + _pairwise(a, lo + n2, n - n2, col)
+
+
+@nb.njit(cache=True, nogil=True)
+def block_spheres(pts, nrm, at):
+    """Each block's sphere and the sum of its normals, with numpy's order of additions (a
+    segment's first row plus the pairwise sum of the rest, as ``np.add.reduceat``; three
+    components summed in order): the same bits as the numpy expressions it replaces.
+
+    Parameters
+    ----------
+    pts, nrm : ndarray, shape (m, 3)
+        The blocks' facets' vertices (m) and their unit normals, three rows per facet, in
+        block order.
+    at : ndarray of int64, shape (n_blocks + 1,)
+        Block b's rows are ``at[b]:at[b + 1]``.
+
+    Returns
+    -------
+    centre : ndarray, shape (n_blocks, 3)
+        The mean of its rows (m).
+    radius : ndarray, shape (n_blocks,)
+        The farthest row from the centre (m).
+    axis : ndarray, shape (n_blocks, 3)
+        The unit sum of its normals (+z where the sum vanishes).
+    norm : ndarray, shape (n_blocks,)
+        The length of that sum.
+    """
+    n_b = at.shape[0] - 1
+    centre = np.empty((n_b, 3))
+    radius = np.empty(n_b)
+    axis = np.empty((n_b, 3))
+    norm = np.empty(n_b)
+    for b in range(n_b):
+        lo, hi = at[b], at[b + 1]
+        cnt = float(hi - lo)
+        s = np.empty(3)
+        for c in range(3):
+            centre[b, c] = (pts[lo, c] + _pairwise(pts, lo + 1, hi - lo - 1, c)) / cnt
+            s[c] = nrm[lo, c] + _pairwise(nrm, lo + 1, hi - lo - 1, c)
+        far = -np.inf
+        for r in range(lo, hi):
+            d0 = pts[r, 0] - centre[b, 0]
+            d1 = pts[r, 1] - centre[b, 1]
+            d2 = pts[r, 2] - centre[b, 2]
+            far = max(far, d0 ** 2 + d1 ** 2 + d2 ** 2)
+        radius[b] = np.sqrt(far)
+        na = np.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2])
+        norm[b] = na
+        for c in range(3):
+            axis[b, c] = s[c] / na if na > 0 else (1.0 if c == 2 else 0.0)
+    return centre, radius, axis, norm

@@ -17,7 +17,7 @@ import numba as nb
 import numpy as np
 
 from acoustics.paths.specular_field import height_field_blocks
-from acoustics.paths.specular_blocks import block_vertices, facet_cells, facet_sag
+from acoustics.paths.specular_blocks import block_spheres, block_vertices, facet_cells, facet_sag
 from acoustics.paths.specular_window import window_blocks
 
 __all__ = ["candidate_facets", "search_blocks", "unit_rows"]
@@ -550,12 +550,9 @@ def _blocks(V, F, N, size: int = 16):
     at = 3 * starts[:-1]
     counts = np.diff(3 * starts)
     pts, nrm = V[fv], N[fv]
-    centre = np.add.reduceat(pts, at, axis=0) / counts[:, None]
+    # the spheres and normal sums in one compiled pass, with numpy's order of additions
+    centre, radius, axis, na = block_spheres(pts, nrm, 3 * starts)
     owner = np.repeat(np.arange(at.size), counts)
-    radius = np.sqrt(np.maximum.reduceat(((pts - centre[owner]) ** 2).sum(axis=1), at))
-    a = np.add.reduceat(nrm, at, axis=0)
-    na = np.linalg.norm(a, axis=1)
-    axis = np.where(na[:, None] > 0, a / np.where(na > 0, na, 1.0)[:, None], [0.0, 0.0, 1.0])
     cosv = np.clip(np.einsum("ij,ij->i", nrm, axis[owner]), -1.0, 1.0)
     spread = np.where(na > 0, np.arccos(np.minimum.reduceat(cosv, at)), np.pi)
     # each block's distinct vertices, and each facet's three as indices into its block's list
