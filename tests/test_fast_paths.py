@@ -183,3 +183,25 @@ def test_a_runs_preparation_changes_no_ping():
     np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(simulate_ping(setup, 1, cache=first)[0],
                                   simulate_ping(setup, 1, cache=lazy)[0])
+
+
+def test_block_spheres_are_numpys_to_the_bit():
+    # the compiled pass adds in numpy's order (np.add.reduceat: the first row plus the pairwise
+    # sum of the rest), so a moving sea's blocks are those of the numpy expressions it replaces
+    from acoustics.paths.specular_blocks import block_spheres
+    rng = np.random.default_rng(21)
+    at = np.concatenate([[0], np.cumsum(rng.choice([3, 24, 48, 300, 480], 60))]).astype(np.int64)
+    pts = rng.normal(size=(at[-1], 3)) * [40.0, 30.0, 0.4] + [5.0, -3.0, 20.0]
+    nrm = rng.normal(size=pts.shape) * [0.1, 0.1, 1.0]
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    centre, radius, axis, na = block_spheres(pts, nrm, at)
+    counts = np.diff(at)
+    owner = np.repeat(np.arange(counts.size), counts)
+    want_c = np.add.reduceat(pts, at[:-1], axis=0) / counts[:, None]
+    a = np.add.reduceat(nrm, at[:-1], axis=0)
+    want_n = np.linalg.norm(a, axis=1)
+    np.testing.assert_array_equal(centre, want_c)
+    np.testing.assert_array_equal(radius, np.sqrt(np.maximum.reduceat(
+        ((pts - want_c[owner]) ** 2).sum(axis=1), at[:-1])))
+    np.testing.assert_array_equal(na, want_n)
+    np.testing.assert_array_equal(axis, a / want_n[:, None])
