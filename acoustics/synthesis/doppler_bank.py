@@ -40,6 +40,7 @@ from acoustics.synthesis.arrivals import kernel_inputs as _kernel_inputs
 from acoustics.synthesis.arrivals import pair as _pair
 from acoustics.synthesis.arrivals import pair_block as _pair_block
 from acoustics.synthesis.arrivals import tap_kernel as _tap_kernel
+from acoustics.synthesis.simd import WIDTH, spread8
 
 __all__ = ["bank_nodes", "bank_error_db", "bank_weights", "bank_replicas", "spread_bank",
            "MAX_NODES"]
@@ -189,6 +190,10 @@ def _spread_bank(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv
     # the far-field loop on its own: a branch inside the parallel loop slows it (as _spread);
     # an arrival's kernel found once for its G trains, each summed as two real trains
     taps = table.shape[1]
+    n_phase = dtable.shape[0]
+    vec = taps % WIDTH == 0
+    tflat = table.ravel()
+    dflat = dtable.ravel()
     for n in nb.prange(n_r):
         cx, cy, cz = c[n, 0], c[n, 1], c[n, 2]
         ex0, ex1, ey0, ey1 = ex[n, 0], ex[n, 1], ey[n, 0], ey[n, 1]
@@ -205,6 +210,24 @@ def _spread_bank(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv
             for i in range(s1 - s0):
                 s = s0 + i
                 ar, ai = buf[i], buf[_BLOCK + i]
+                if vec:
+                    # eight taps a vector step (acoustics/synthesis/simd.py): the kernel is
+                    # formed again per train, the same fused multiply-adds, the same sums
+                    mu = (buf[2 * _BLOCK + i] - shift[s] - t0) * fs + q0
+                    if mu < lo or mu >= hi:
+                        continue
+                    m0 = int(mu)
+                    x = (mu - m0) * n_phase
+                    r = min(int(x), n_phase - 1)
+                    w = x - r
+                    base = m0 - half + 1
+                    for j in range(n_g):
+                        br = ar * wre[s, j] - ai * wim[s, j]
+                        bi = ar * wim[s, j] + ai * wre[s, j]
+                        for t in range(0, taps, WIDTH):
+                            spread8(tflat, dflat, r * taps + t, w, rre[j], rim[j], base + t,
+                                    br, bi)
+                    continue
                 base = _tap_kernel(buf[2 * _BLOCK + i] - shift[s], t0, fs, q0, table, dtable,
                                    lo, hi, k)
                 if base < 0:
