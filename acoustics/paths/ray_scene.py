@@ -92,7 +92,10 @@ class RayScene:
     last_specular: list = field(default_factory=list)
     """(mesh index, start, SpecularPoints, visible) of the last ``multipath`` call (views)."""
     _normal_cache: dict = field(default_factory=dict)
+    _block_cache: dict = field(default_factory=dict)
     time_s: float = 0.0
+    prepared: bool = False
+    """Whether :meth:`prepare` ran (once per run, before the first ping's queries)."""
     fan_extent_rad: tuple | None = None
     """(az_lo, az_hi, el_lo, el_hi) (rad) of the transmitter's principal cuts above
     ``effects.specular.beam_level_db`` in the sonar frame; None: specular search everywhere."""
@@ -120,10 +123,12 @@ class RayScene:
         self._reverb_rays = None
         self._mesh_target_scatterers = None
         self._mesh_target_view = None
-        # a still mesh's vertex normals stay (a rough floor's cost as much as its search)
+        # a still mesh's vertex normals and search blocks stay (a rough floor's cost as much as
+        # its search)
         still = {id(sm.mesh) for sm in self.meshes if not sm.moving}
-        for key in [k for k in self._normal_cache if k not in still]:
-            del self._normal_cache[key]
+        for cache in (self._normal_cache, self._block_cache):
+            for key in [k for k in cache if k not in still]:
+                del cache[key]
         self.time_s = float(time_s)
 
     # ---------------------------------------------------------------- occlusion
@@ -310,6 +315,42 @@ class RayScene:
             self._normal_cache[key] = vertex_normals(sm.mesh.vertices, sm.mesh.faces)
         return self._normal_cache[key]
 
+    def _search_blocks(self, i):
+        """A still whole mesh's search blocks (acoustics/paths/specular_search.py
+        ``search_blocks``), made once per run; None for a moving or tiled one (its own)."""
+        from acoustics.paths.tiles import is_tiled
+        sm = self.meshes[i]
+        if sm.moving or is_tiled(sm.mesh):
+            return None
+        key = id(sm.mesh)
+        if key not in self._block_cache:
+            from acoustics.paths.specular_search import search_blocks
+            self._block_cache[key] = search_blocks(sm.mesh.vertices, sm.mesh.faces,
+                                                   self._normals(i))
+        return self._block_cache[key]
+
+    def prepare(self, setup, seed: int):
+        """What a run makes once, before its first ping's queries, so that no ping pays for
+        it: the still meshes' Embree scene committed (its BVH), the still curved reflectors'
+        vertex normals and search blocks (when paths bounce), the reverberation fan (when
+        boundaries reverberate). Changes no result.
+
+        Parameters
+        ----------
+        setup : Setup
+            The run's set-up (acoustics/simulation/setup.py): its effects say what is needed.
+        seed : int
+            The run's seed (the fan's frozen jitter).
+        """
+        self.prepared = True
+        self.caster.commit()
+        fx = setup.effects
+        if fx.max_bounces > 0:
+            for i in self.curved:
+                self._search_blocks(i)
+        if fx.reverberation is not None:
+            self._reverberation_fan(fx.reverberation, setup, seed)
+
     def specular_legs(self, start, ends, velocities=None, start_velocity=None, *,
                       window_extent=None, view=None):
         """One-bounce legs from ``start`` to each of ``ends`` off every curved boundary.
@@ -466,11 +507,12 @@ class RayScene:
         if is_tiled(sm.mesh):      # a tile at a time, in the run's cache of tiles (the caster's)
             search = partial(sm.mesh.specular_points, cache=self.caster.tile_cache(ci))
         else:
-            search = partial(specular_points, sm.mesh.vertices, sm.mesh.faces, self._normals(ci))
+            search = partial(specular_points, sm.mesh.vertices, sm.mesh.faces, self._normals(ci),
+                             blocks=self._search_blocks(ci))
         sp = search(np.broadcast_to(s_img, (n, 3)), e_img,
                     newton_iterations=spec.newton_iterations,
                     focusing_limit_db=spec.focusing_limit_db, height_field=exact,
-                    window=window)
+                    window=window, near_facets=bool(getattr(spec, "near_facets", False)))
         empty = (np.zeros(0, int), np.zeros((0, 3)), np.zeros(0, complex), np.zeros(0),
                  np.zeros(0, int))
         if not len(sp):

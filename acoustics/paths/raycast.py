@@ -18,6 +18,7 @@ the rays it casts, per purpose, so a run can prove which stages cast none.
 """
 from __future__ import annotations
 
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -79,6 +80,37 @@ def _refine(face, o, d, face_plane, face_mesh, limit, out_face, out_mesh, out_t,
         out_p[i, 2] = o[i, 2] + tt * uz
 
 
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _may_reach(o32, d32, dists, centre, axes, lo, hi):
+    """Whether any ray (origin ``o32``, unit direction ``d32``, float32; as far as ``dists``,
+    or without end when None) meets the box [lo, hi] in the frame of ``axes`` (columns) about
+    ``centre`` (float64 slabs)."""
+    for i in range(o32.shape[0]):
+        t0 = 0.0
+        t1 = np.inf if dists is None else float(dists[i])
+        for j in range(3):
+            o = 0.0
+            d = 0.0
+            for m in range(3):
+                o += (float(o32[i, m]) - centre[m]) * axes[m, j]
+                d += float(d32[i, m]) * axes[m, j]
+            if d == 0.0:
+                if o < lo[j] or o > hi[j]:
+                    t0 = 1.0
+                    t1 = 0.0
+                    break
+                continue
+            a = (lo[j] - o) / d
+            b = (hi[j] - o) / d
+            if a > b:
+                a, b = b, a
+            t0 = max(t0, a)
+            t1 = min(t1, b)
+        if t0 <= t1:
+            return True
+    return False
+
+
 @dataclass(frozen=True)
 class Hits:
     """First hits of a batch of rays, one row per ray.
@@ -119,6 +151,23 @@ class Hits:
         return np.where(self.hit[:, None], self.face_normals[np.maximum(self.face, 0)], 0.0)
 
 
+def _same_layout(previous, meshes, tiled):
+    """Whether ``meshes`` hold the previous caster's whole meshes in its places: each the same
+    object, or a moving one (a sea) with as many vertices and the same facets."""
+    if len(previous.meshes) != len(meshes) or previous._tiled or tiled.any():
+        return False
+    for a, b in zip(previous.meshes, meshes):
+        if a is b:
+            continue
+        if not (getattr(a, "moving", False) and getattr(b, "moving", False)):
+            return False
+        va, vb = a.mesh.vertices, b.mesh.vertices
+        fa, fb = a.mesh.faces, b.mesh.faces
+        if len(va) != len(vb) or not np.array_equal(fa, fb):
+            return False
+    return True
+
+
 class RayCaster:
     """Embree scene of a list of :class:`~acoustics.meshes.SceneMesh` (sonar frame).
 
@@ -145,34 +194,67 @@ class RayCaster:
         self._per_mesh = {}
         # a floor in tiles (acoustics/paths/tiles.py.FloorTiles) says so
         tiled = np.array([bool(getattr(sm.mesh, "tiled", False)) for sm in self.meshes])
+        # a new sea under the previous caster's still meshes, its facets as before: the
+        # previous arrays, with the sea's rows written anew (the still rows are not copied
+        # piecewise, the facets and their owners not at all)
+        same = previous is not None and _same_layout(previous, self.meshes, tiled)
+        changed = []
         for i, sm in enumerate(self.meshes):
             if tiled[i]:
                 continue
             v = np.asarray(sm.mesh.vertices, float)
             f = np.asarray(sm.mesh.faces, np.int64)
-            verts.append(v)
-            faces.append(f + offset)
-            owner.append(np.full(len(f), i))
-            offset += len(v)
-            # a mesh's face normals and first vertices, kept from the previous caster when the
-            # mesh is the same object (a still floor under a moving sea)
+            # a mesh's face normals, first vertices and largest coordinate, kept from the
+            # previous caster when the mesh is the same object (a still floor under a moving sea)
             kept = None if previous is None else previous._per_mesh.get(id(sm))
-            if kept is None or kept[0] is not sm:
+            fresh = kept is None or kept[0] is not sm
+            if fresh:
                 tri = v[f]
                 n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
                 norm = np.linalg.norm(n, axis=1)
-                kept = (sm, n / np.where(norm > 0, norm, 1.0)[:, None], tri[:, 0].copy())
+                kept = (sm, n / np.where(norm > 0, norm, 1.0)[:, None], tri[:, 0].copy(),
+                        float(np.max(np.abs(v))) if len(v) else None)
+                changed.append((i, offset, v, kept))
             self._per_mesh[id(sm)] = kept
-            normal.append(kept[1])
-            v0.append(kept[2])
+            if not same:
+                verts.append(v)
+                faces.append(f + offset)
+                owner.append(np.full(len(f), i))
+                normal.append(kept[1])
+                v0.append(kept[2])
+            offset += len(v)
+
         def cat(parts, shape, dtype=float):
             return np.concatenate(parts) if parts else np.zeros(shape, dtype)
 
-        self.vertices = cat(verts, (0, 3))
-        self.faces = cat(faces, (0, 3), np.int64)
-        self.face_mesh = cat(owner, (0,), np.int64)
-        self.face_normal = cat(normal, (0, 3))
-        self.face_v0 = cat(v0, (0, 3))
+        if same:
+            self.vertices = previous.vertices.copy()
+            self.faces = previous.faces
+            self.face_mesh = previous.face_mesh
+            self.face_normal = previous.face_normal.copy()
+            self.face_v0 = previous.face_v0.copy()
+            self.face_plane = previous.face_plane.copy()
+            for i, v_off, v, kept in changed:
+                rows = previous._face_rows[i]
+                self.vertices[v_off:v_off + len(v)] = v
+                self.face_normal[rows] = kept[1]
+                self.face_v0[rows] = kept[2]
+                self.face_plane[rows, :3] = kept[1]
+                self.face_plane[rows, 3] = np.einsum("ij,ij->i", kept[1], kept[2])
+            self._face_rows = previous._face_rows
+        else:
+            self.vertices = cat(verts, (0, 3))
+            self.faces = cat(faces, (0, 3), np.int64)
+            self.face_mesh = cat(owner, (0,), np.int64)
+            self.face_normal = cat(normal, (0, 3))
+            self.face_v0 = cat(v0, (0, 3))
+            # rows n, n·v0: one cache line per hit when refining
+            self.face_plane = np.empty((self.faces.shape[0], 4))
+            self.face_plane[:, :3] = self.face_normal
+            self.face_plane[:, 3] = np.einsum("ij,ij->i", self.face_normal, self.face_v0)
+            bounds = np.cumsum([0] + [len(x) for x in owner])
+            whole = [i for i in range(len(self.meshes)) if not tiled[i]]
+            self._face_rows = {i: slice(int(a), int(b)) for i, a, b in zip(whole, bounds[:-1], bounds[1:])}
         # tiled floors (acoustics/paths/tiles.py): their facets are numbered after the whole
         # meshes', (mesh index, the run's TileCache of the floor, first facet) each; never held
         # whole. The built tiles are the caster's (the run's), not the floor's (the frozen
@@ -186,19 +268,22 @@ class RayCaster:
                 (c for _, c, _ in previous._tiled if c.floor is floor), None)
             self._tiled.append((int(i), held if held is not None else TileCache(floor), start))
             start += floor.n_faces
-        # rows n, n·v0: one cache line per hit when refining
-        self.face_plane = np.empty((self.faces.shape[0], 4))
-        self.face_plane[:, :3] = self.face_normal
-        self.face_plane[:, 3] = np.einsum("ij,ij->i", self.face_normal, self.face_v0)
-        extents = [float(np.max(np.abs(self.vertices)))] if len(self.vertices) else []
+        extents = [k[3] for k in self._per_mesh.values() if k[3] is not None]
+        extents = [max(extents)] if extents else []
         extents += [tiles.floor.extent_m for _, tiles, _ in self._tiled]
         self.extent_m = max(extents) if extents else 1.0
         self.eps_m = max(64 * np.spacing(np.float32(max(self.extent_m, 1.0))).item(), 1e-7)
         self.threads = threads or os.cpu_count() or 1
         # one Embree scene for the meshes that never move, one for those that do (a sea): a
-        # caster rebuilt for a new sea (``previous``) keeps the still meshes' scene and its BVH
+        # caster rebuilt for a new sea (``previous``) keeps the still meshes' scene and its BVH;
+        # the moving meshes' scene is built when a batch of rays first may reach their box
+        # (rays that cannot reach it cannot hit it: a ping whose rays all stay below a sea
+        # never builds it)
         moving = np.array([bool(getattr(sm, "moving", False)) for sm in self.meshes])
         self._parts = []
+        self._lazy = {}
+        self._lock = threading.Lock()
+        self._robust = robust
         for flag in (False, True):
             idx = np.flatnonzero((moving == flag) & ~tiled)
             if idx.size == 0:
@@ -206,6 +291,9 @@ class RayCaster:
             reused = None
             if previous is not None and not flag:
                 reused = previous._still_part(self.meshes, idx)
+            if reused is None and flag:
+                self._lazy[len(self._parts)] = (idx, self._box(idx))
+                reused = (None, None, [self.meshes[i] for i in idx], False)
             self._parts.append(reused if reused is not None else
                                self._build_part(idx, robust, still=not flag))
         self.rays_cast: dict[str, int] = {}
@@ -267,6 +355,42 @@ class RayCaster:
                      indices=np.concatenate(local).astype(np.int32))
         return scene, faces.astype(np.int32), [self.meshes[i] for i in mesh_idx], still
 
+    def _box(self, mesh_idx):
+        """The box of the meshes ``mesh_idx`` along their principal axes (a sea tilted in the
+        sonar's frame is a thin slab in its own): (centre (3,), axes (3, 3) as columns, lo (3,),
+        hi (3,); m), grown by a margin far above Embree's float32 rounding (1 mm and 1e-5 of
+        the scene's extent)."""
+        v = np.concatenate([np.asarray(self.meshes[i].mesh.vertices, float) for i in mesh_idx])
+        centre = v.mean(axis=0)
+        axes = np.linalg.svd(v - centre, full_matrices=False)[2].T
+        local = (v - centre) @ axes
+        grow = 1e-3 + 1e-5 * self.extent_m + 100 * self.eps_m
+        return (centre, np.ascontiguousarray(axes), local.min(axis=0) - grow,
+                local.max(axis=0) + grow)
+
+    def _part(self, k, o32, d32, dists):
+        """Part ``k``'s Embree scene, built now if it is a lazy one that a ray of this batch
+        may reach (None while none may: no ray of the batch can hit it)."""
+        scene = self._parts[k][0]
+        if scene is not None:
+            return scene
+        idx, (centre, axes, lo, hi) = self._lazy[k]
+        if not _may_reach(o32, d32, dists, centre, axes, lo, hi):
+            return None
+        with self._lock:
+            if self._parts[k][0] is None:
+                self._parts[k] = self._build_part(idx, self._robust, still=False)
+        return self._parts[k][0]
+
+    def commit(self):
+        """Build the Embree scenes made so far (their BVHs: Embree builds one on its first
+        query), so that no later batch pays for it; casts no counted ray."""
+        o = np.zeros((1, 3), np.float32)
+        d = np.array([[0.0, 0.0, 1.0]], np.float32)
+        for scene, _, _, _ in self._parts:
+            if scene is not None:
+                scene.run(o, d, query="OCCLUDED")
+
     def _still_part(self, meshes, mesh_idx):
         """This caster's scene of still meshes, if ``meshes[mesh_idx]`` are the same objects at
         the same face offsets (so its face indices hold in the new caster), else None."""
@@ -282,22 +406,25 @@ class RayCaster:
     def _ids(self, o32, d32, dists, query):
         """Embree's answer over every part: the global face hit (INTERSECT; the nearest over
         the parts, by Embree's float32 distance) or 0 where blocked (OCCLUDED, as Embree)."""
-        if not self._parts:
+        # the parts a ray of the batch may reach (a lazy part none can reach is left out)
+        parts = [(scene, self._parts[k][1]) for k in range(len(self._parts))
+                 if (scene := self._part(k, o32, d32, dists)) is not None]
+        if not parts:
             return np.full(o32.shape[0], -1, np.int32)
-        if len(self._parts) == 1:
-            scene, faces, _, _ = self._parts[0]
+        if len(parts) == 1:
+            scene, faces = parts[0]
             if query == "OCCLUDED":
                 return np.asarray(scene.run(o32, d32, dists=dists, query=query))
             ids = np.asarray(scene.run(o32, d32, dists=dists, query=query))
             return np.where(ids >= 0, faces[np.maximum(ids, 0)], -1).astype(np.int32)
         if query == "OCCLUDED":
             free = np.ones(o32.shape[0], bool)
-            for scene, _, _, _ in self._parts:
+            for scene, _ in parts:
                 free &= np.asarray(scene.run(o32, d32, dists=dists, query=query)) != 0
             return np.where(free, -1, 0).astype(np.int32)
         best = np.full(o32.shape[0], -1, np.int32)
         best_t = np.full(o32.shape[0], np.inf, np.float32)
-        for scene, faces, _, _ in self._parts:
+        for scene, faces in parts:
             res = scene.run(o32, d32, dists=dists, query=query, output=1)
             ids = np.asarray(res["geomID"]) if isinstance(res, dict) else None
             prim = np.asarray(res["primID"])

@@ -323,7 +323,8 @@ def _inside_xy(tri_xy, xy, eps):
 def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenumber=None,
                     newton_iterations: int = 8, focusing_limit_db: float = 20.0,
                     search_tolerance: float = 0.1, height_field=None,
-                    cull: bool = True, window=None, blocks=None) -> SpecularPoints:
+                    cull: bool = True, window=None, blocks=None,
+                    near_facets: bool = False) -> SpecularPoints:
     """Every one-bounce specular path off a mesh for each source–receiver pair.
 
     Parameters
@@ -355,6 +356,10 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
         Search only blocks of facets that reach into this angular window (rad) seen from its
         origin (m), directions in the axes of the rotation's columns (a transmitter's fan:
         ``effects.specular.beam_level_db``); needs ``cull``. None: everywhere.
+    near_facets : bool
+        With ``window``: a block of facets seen from the window's origin under more than
+        0.05 rad is searched only in its facets whose own sphere reaches into the window
+        (``effects.specular.near_facets``); else in all of them.
     height_field : (callable, ndarray (4, 4)), optional
         The exact surface the mesh samples, as ``z, z_x, z_y, z_xx, z_xy, z_yy = f(x, y)`` in
         its own frame, and the rigid placement of that frame in the mesh's. Bounce points are
@@ -405,7 +410,7 @@ def specular_points(vertices, faces, normals, sources_m, receivers_m, *, wavenum
     N, pair, face, st = candidate_facets(V, F, normals, S, P, tolerance=search_tolerance,
                                          cull=cull, window=window, blocks=blocks,
                                          tight=rot is None and newton_iterations > 0,
-                                         height_bound=bound)
+                                         height_bound=bound, near_facets=near_facets)
     Sq, Pq = S[pair], P[pair]
     if rot is not None:
         # Newton on the exact surface in its own frame, from the facet's estimate

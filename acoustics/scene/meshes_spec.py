@@ -381,3 +381,8 @@ class SpecularSpec(ConfigModel):
     that fan, and receive legs are searched only for targets inside it or with a transmit leg
     that bounces (every other path leaves the transmitter below the level). null: every facet
     for every target (the reference). An accuracy knob (docs/accuracy.md, "Specular fan")."""
+    near_facets: bool = False
+    """With ``beam_level_db``: a block of facets seen from a leg's start under more than
+    0.05 rad (a sea just above the sonar) is searched only in its facets that reach into the
+    fan themselves, not in every facet of a block whose sphere does (near the sonar a block's
+    sphere spans far more than the fan). An accuracy knob (docs/accuracy.md, "Specular fan")."""

@@ -91,6 +91,10 @@ def simulate_ping(setup: Setup, ping: int, *, cache: RunCache | None = None,
             targets = swimbladder_backscatter(setup.targets, targets, ping, pose, seed)
     strength = targets.rho_m * np.exp(1j * targets.phase_rad)
     rs, view = cache.ray_scene_at(pose, log)
+    if rs is not None and not rs.prepared:
+        # once per run (a still floor's BVH, search blocks, the reverberation fan): set-up
+        with log.stage("rays_build"):
+            rs.prepare(setup, seed)
     scatters = fx.reverberation is not None
     mesh_targets = setup.rays is not None and setup.rays.has_mesh_targets
     if rs is not None and rs.moving and (scatters or mesh_targets or (
