@@ -131,6 +131,32 @@ def test_an_interrupt_landing_in_a_finaliser_ends_the_command_as_an_interrupt(tm
     assert time.monotonic() - t0 < 4.5      # neither the finaliser's 5 s nor the work's 5 s
 
 
+def test_an_interrupt_is_not_raised_inside_the_compiler(tmp_path):
+    """A KeyboardInterrupt raised inside numba's or llvmlite's Python code (a kernel compiled or
+    loaded from its cache) left a dispatcher half made, and the next call crashed the process
+    (exit -11, seen in a loop of SIGINTs into `abacus simulate`): a signal landing there is raised
+    once that code has returned, and the command still ends with 130 'interrupted'."""
+    pre = ("import abacus.cli.beams as b\n"
+           "import os, signal, sys, threading, time, types\n"
+           "fake = types.ModuleType('numba._abacus_test_compiler')\n"
+           "exec('import time\\ndef compile_kernel():\\n'\n"
+           "     '    for step in range(60):\\n'\n"
+           "     '        time.sleep(0.01)\\n'\n"
+           "     '    return step', fake.__dict__)\n"
+           "def boom(args):\n"
+           "    threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGINT)).start()\n"
+           "    print('compiled', fake.compile_kernel(), flush=True)   # the signal lands inside\n"
+           "    for step in range(300):         # the command's work, which must not go on\n"
+           "        time.sleep(0.01)\n"
+           "    print('went on')\n"
+           "    return 0\n"
+           "b.command = boom")
+    r = abacus("beams", "--json", cwd=tmp_path, pre=pre)
+    assert r.returncode == 130 and r.stderr.strip() == "interrupted", (r.returncode, r.stderr)
+    assert "compiled 59" in r.stdout       # the compiler's code ran to its end
+    assert "went on" not in r.stdout
+
+
 def test_an_interrupt_that_left_an_eval_still_ends_python_m_abacus_with_130(tmp_path):
     """A KeyboardInterrupt that passed through an ``eval`` of a string (namedtuple and dataclass
     definitions run one while modules load: seen in the reliability probes) is recorded by

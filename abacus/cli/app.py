@@ -168,7 +168,7 @@ def _install_signal_handlers():
     def handler(signum, frame):
         with _SWALLOWED_LOCK:
             again = _SWALLOWED.pop(signum, None)    # the interrupt a finaliser swallowed
-            if again is not None and _inside_hook(frame):
+            if again is not None and (_inside_hook(frame) or _inside_compiler(frame)):
                 _SWALLOWED[signum] = "pending"      # raised here, it would be dropped again
                 return
         if again is not None:
@@ -190,6 +190,14 @@ def _install_signal_handlers():
             state["held"] = True
             atomic.hold_signal(signum)
             return
+        if _inside_compiler(frame):
+            # raised inside numba's or llvmlite's Python code (a kernel compiled or loaded from
+            # the cache, an LLVM object's finaliser), the interrupt left a dispatcher half made,
+            # and the next call of that kernel crashed the process (exit -11, 4 of 450 SIGINTs
+            # in the first synthesis of `abacus simulate` on a loaded machine): raised again,
+            # by the thread that re-sends a swallowed interrupt, once the main thread is out
+            _deliver_later(signum)
+            return
         raise KeyboardInterrupt if signum == signal.SIGINT else _Terminated()
 
     if threading.current_thread() is threading.main_thread():
@@ -204,6 +212,47 @@ _SWALLOWED: dict = {}
 _SWALLOWED_LOCK = threading.RLock()
 #: the code of the unraisable hook (an interrupt raised while it runs would be dropped)
 _HOOK_CODES: set = set()
+
+
+#: packages whose Python code an exception raised at an arbitrary bytecode can leave in a state
+#: that crashes a later call (their compiler, cache and LLVM bindings are not written for it)
+_COMPILER_PACKAGES = ("numba", "llvmlite")
+
+
+def _inside_compiler(frame) -> bool:
+    while frame is not None:
+        name = frame.f_globals.get("__name__", "")
+        if name.split(".", 1)[0] in _COMPILER_PACKAGES:
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _deliver_later(signum):
+    """Mark ``signum`` as an interrupt to raise anew and start the thread that sends it to the
+    main thread until the handler has raised it (:func:`_deliver_again`)."""
+    with _SWALLOWED_LOCK:
+        running = signum in _SWALLOWED
+        _SWALLOWED[signum] = "pending"
+    if not running:
+        threading.Thread(target=_deliver_again, args=(signum,), daemon=True).start()
+
+
+def _deliver_again(signum):
+    """Send ``signum`` to the main thread, every 10 ms while it is "pending", until the handler
+    has raised it (it pops the entry) or the main thread has ended."""
+    import signal
+    import time
+    main = threading.main_thread()
+    while main.is_alive():
+        with _SWALLOWED_LOCK:
+            state = _SWALLOWED.get(signum)
+            if state is None:           # raised anew: done
+                return
+            if state == "pending":
+                _SWALLOWED[signum] = "sent"
+                signal.pthread_kill(main.ident, signum)
+        time.sleep(0.01)
 
 
 def _inside_hook(frame) -> bool:
@@ -223,28 +272,12 @@ def _unraisable_ends_an_interrupt(default_hook):
     interrupt anew outside this hook (inside it, it would be dropped too), where it ends the
     command as any interrupt does."""
     import signal
-    import threading
-    import time
-
-    def deliver_again(signum):
-        main = threading.main_thread()
-        while main.is_alive():
-            with _SWALLOWED_LOCK:
-                state = _SWALLOWED.get(signum)
-                if state is None:           # raised anew: done
-                    return
-                if state == "pending":
-                    _SWALLOWED[signum] = "sent"
-                    signal.pthread_kill(main.ident, signum)
-            time.sleep(0.01)
 
     def hook(unraisable):
         if _RECEIVED and unraisable.exc_type is not None and \
                 issubclass(unraisable.exc_type, (KeyboardInterrupt, _Terminated)):
             signum = signal.SIGINT if _RECEIVED[0][0] == EXIT_INTERRUPTED else signal.SIGTERM
-            with _SWALLOWED_LOCK:
-                _SWALLOWED[signum] = "pending"
-            threading.Thread(target=deliver_again, args=(signum,), daemon=True).start()
+            _deliver_later(signum)
             return
         default_hook(unraisable)
     _HOOK_CODES.add(hook.__code__)
