@@ -934,8 +934,9 @@ def hard_survey():
     subprocess.run(["tar", "-x", "-C", str(base)], input=archive, check=True)
     # the old code knows no specular fan (its search is exhaustive): the key is left out
     old_scene = base / "hard_survey_before.yaml"
+    # and names the bounces per leg by their older key
     old_scene.write_text("".join(line for line in scene.read_text().splitlines(True)
-                                 if "beam_level_db" not in line))
+                                 if "beam_level_db" not in line).replace("max_bounces:", "multipath_order:"))
     try:
         before = _hard_child(base, old_scene, 3, 1)
     finally:
