@@ -25,8 +25,9 @@ azimuth and range the 3-D position is taken at change):
   direction, since ψ_AB depends on the azimuth through the baseline's x part).
 
 It also reports, for each false count of the peak estimator and of the two-target fit, the SNR,
-the distance of the nearest other fish (resolution cells), the elevations each estimator gives
-and the one-target fit's residual. The echo means and the one-target fit are diagnoses only.
+the distance of the nearest other fish from where that estimator located the echo (resolution
+cells: the two rows of one fish-ping differ where the fit moved it), the elevations each
+estimator gives and the one-target fit's residual. The echo means and the one-target fit are diagnoses only.
 """
 from __future__ import annotations
 
@@ -176,7 +177,8 @@ def edge_section(seeds=DEV_SEEDS) -> str:
             + "\n\nThe false counts of the chain's estimator (peak) and of the two-target fit, with the elevation (°) each "
             "estimator locates them at (the counting volume's faces at ±0.419°) and the one-target "
             "fit's residual (dB of the patch's energy; an isolated fish leaves −40 to −47 dB):\n\n"
-            + table(["false count of", "seed", "ping", "SNR (dB)", "nearest other fish (cells)", "true elevation"]
+            + table(["false count of", "seed", "ping", "SNR (dB)", "nearest other fish (cells from where that estimator located it)",
+                     "true elevation"]
                     + list(est) + ["one-target fit residual (dB)"], false_rows))
 
 

@@ -115,3 +115,24 @@ def test_the_chain_applies_the_fit_as_detect_all_does_however_the_record_is_cut(
     assert not np.array_equal(ref.table["psi_rad"], peak.table["psi_rad"])
     for k, v in ref.table.items():
         np.testing.assert_array_equal(det.table[k], v, err_msg=k)
+
+
+def test_a_fitted_component_outside_the_fitted_patch_is_not_taken():
+    """The fit sees ±1.5 range cells × ±2 beams around the peak; a component it places outside
+    that patch is an extrapolation the data there do not constrain (here a sidelobe cell at the
+    image's corner, whose two-target fit puts its nearest component on the pair 1.9 cells and
+    4.6° away). The detection is its own peak's echo: where the nearest component lies outside
+    the patch, the peak's phase and position stand."""
+    rec, im = _images(((20.0, 0.3, 0.45), (20.027, 2.2, -0.6)))
+    nr, nb = im.image.shape[2:]
+    dr = im.range_resolution_m
+    step = float(im.range_m[1] - im.range_m[0])
+    half = max(1, int(round(1.5 * dr / step)))
+    for r, b in ((nr - 1, nb - 1), (0, nb - 1), (nr // 2, 0)):
+        rows, beams = slice(max(r - half, 0), min(r + half + 1, nr)), slice(max(b - 2, 0), min(b + 3, nb))
+        psi, az, rg, taken = fit_detections(im, rec, np.array([0]), np.array([r]), np.array([b]),
+                                            im.range_m[[r]], im.beam_angle_rad[[b]], np.array([np.inf]))
+        if taken[0]:
+            assert im.range_m[rows][0] - 1e-9 <= rg[0] <= im.range_m[rows][-1] + 1e-9, (r, b, rg[0])
+            lo, hi = np.sort(np.sin(im.beam_angle_rad[beams]))[[0, -1]]
+            assert lo - 1e-12 <= np.sin(az[0]) <= hi + 1e-12, (r, b, np.degrees(az[0]))

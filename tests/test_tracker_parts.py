@@ -278,3 +278,19 @@ def test_tracker_with_the_fan_crossing_split_gives_each_fish_its_track():
     # the second part is filtered again from its own first detection, so its states follow it
     assert cut[1].pings[0] >= np.argmax(fish) - 1
     assert len(cut[1].smoothed) == len(cut[1].pings)
+
+
+def test_a_one_hit_confirmation_still_tracks_with_the_default_split():
+    """``track.confirm_hits: 1`` is an accepted setting, and processing/tracking/tracks.py hands
+    it to the default split as the hits each part must hold; a part is a line through the fan,
+    which takes two detections, so the split asks for two — it must not refuse the setting
+    (it raised "split min_hits must be at least 2" from inside the tracker) — and still finds
+    the second fish."""
+    from processing.settings import TrackSettings
+    from processing.tracking.splitting import splitter
+    st = TrackSettings(confirm_hits=1, confirm_window=1)
+    split = splitter(st.split, probability=st.split_probability, min_hits=st.confirm_hits)
+    assert split.min_hits >= 2
+    t, u, fish = _one_behind_the_other(np.random.default_rng(0))
+    cuts = split.breaks(t, u, np.full(t.size, _SIG**2), np.full(t.size, _W))
+    assert len(cuts) == 1 and abs(cuts[0] - np.argmax(fish)) <= 1

@@ -193,8 +193,22 @@ def refit_elevations(table: dict, images: Images, record, volume: CountingVolume
     """``detect.elevation: fit``: the two-target fit's ψ, azimuth and range where it is taken
     (:mod:`processing.detection.elevation_fit`), written into the table (in place).
 
-    ``images`` hold the pings ``table["ping"] − ping_offset``; ``pose`` is indexed by
-    ``table["ping"]``."""
+    Parameters
+    ----------
+    table : dict of ndarray, each shape (n,)
+        A selected detections table (:class:`Detections`); ``psi_rad``, ``azimuth_rad``,
+        ``range_m``, ``elevation_rad``, ``elevation_clipped``, ``x_m``…``world_z_m`` (m, sonar and
+        world frames), ``in_span`` and ``in_volume`` of the refitted rows are replaced.
+    images : Images
+        Interferometric images holding the pings ``table["ping"] − ping_offset``; nothing is
+        done for other images or an empty table.
+    record : SonarRecord
+    volume : CountingVolume
+    pose : (position_m (3,) or (n_pings, 3), rotation (3, 3) or (n_pings, 3, 3)), optional
+        Indexed by ``table["ping"]`` where per ping.
+    ping_offset : int
+        The record ping of ``images``' first ping.
+    """
     from processing.detection.elevation_fit import fit_detections, relocate
     if not images.interferometric or not len(table.get("ping", ())):
         return

@@ -16,10 +16,11 @@ linear least squares for given (τ_j, u_j) (variable projection), the delays and
 by Levenberg–Marquardt from four starts half a cell apart. Where the one-target fit leaves more
 than :data:`TRIGGER_DB` of the patch's energy (an isolated fish leaves −40 to −47 dB: the model's
 own error) and two targets lower the residual by at least :data:`GAIN_DB`, the component nearest
-the peak is the detection: its ψ_AB = arg(a_A a_B*), its delay and direction (ψ_AB depends on
-the azimuth through the baseline's x part, so the elevation is taken at the component's own
-azimuth). Elsewhere the peak's ψ stands (the reference, ``detect.elevation: peak``). Detections
-below :data:`MIN_SNR_DB` keep the peak's ψ: there noise, not a neighbour, sets the phase error.
+the peak is the detection where it lies inside the patch (outside, the fit extrapolates): its
+ψ_AB = arg(a_A a_B*), its delay and direction (ψ_AB depends on the azimuth through the
+baseline's x part, so the elevation is taken at the component's own azimuth). Elsewhere the
+peak's ψ stands (the reference, ``detect.elevation: peak``). Detections below
+:data:`MIN_SNR_DB` keep the peak's ψ: there noise, not a neighbour, sets the phase error.
 """
 from __future__ import annotations
 
@@ -205,6 +206,11 @@ def fit_detections(images, record, ping, row, beam, range_m, azimuth_rad, snr_db
         r2 = x2[:2] * c / 2
         j = int(np.argmin(np.hypot((r2 - range_m[i]) / dr, (x2[2:] - u0) / du)))
         if not (np.all(np.isfinite(x2)) and abs(x2[2 + j]) <= 1):
+            continue
+        # a component outside the fitted patch is an extrapolation the patch's samples do not
+        # constrain (a sidelobe or ghost cell's fit reaching for the echo it belongs to, or past
+        # the image's edge): the detection is not that component, and its peak stands
+        if not (tt[0] <= x2[j] <= tt[-1] and uu.min() <= x2[2 + j] <= uu.max()):
             continue
         psi[i] = np.angle(a2[j, 0] * np.conj(a2[j, 1]))
         az[i], rg[i] = np.arcsin(x2[2 + j]), r2[j]

@@ -250,8 +250,14 @@ def track_detections(ping_index, time_s, position_m, covariance_m2, *, method: s
         Each detection's direction through the fan (unit vector of increasing elevation, world
         frame; :func:`fan_normal`): what the splitting part reads a track's motion through the
         fan along. None: no splitting.
+    fan_width_m : array_like, shape (n,) or scalar, optional
+        The fan's thickness at each detection's range (m: range × the transmitter's elevation
+        beamwidth); needed when ``split`` and ``through_fan`` are given.
+    fan_centre_m : array_like, shape (n,) or scalar, optional
+        n·p, the sonar's position p along ``through_fan`` at each detection's ping (m), so that
+        u = n·z − n·p is 0 on the fan's centre plane; None: 0 (the sonar at the origin).
     split : object, optional
-        The track-splitting part (``breaks(time_s, through_fan_m, variance_m2)``;
+        The track-splitting part (``breaks(time_s, through_fan_m, variance_m2, fan_width_m)``;
         :mod:`processing.tracking.splitting`), applied to every confirmed track once tracking
         ends: each part it cuts becomes a track of its own, its states filtered again from its
         first detection (born as management births a track, then the motion part's updates with

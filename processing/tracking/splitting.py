@@ -192,9 +192,13 @@ class FanCrossingSplit:
 
 
 def splitter(name: str, *, probability: float = 0.999, min_hits: int = 3):
-    """The track-splitting part named by the setting ``track.split``: "none" or "fan_crossing"."""
+    """The track-splitting part named by the setting ``track.split``: "none" or "fan_crossing".
+
+    ``probability`` is ``track.split_probability``; ``min_hits`` the detections each part must
+    hold (the tracker passes ``track.confirm_hits``), raised to 2: each part is a line through
+    the fan, which one detection does not make (``confirm_hits: 1`` is an accepted setting)."""
     if name == "none":
         return NoSplit()
     if name == "fan_crossing":
-        return FanCrossingSplit(probability, min_hits)
+        return FanCrossingSplit(probability, max(2, int(min_hits)))
     raise ValueError(f"tracking split must be 'none' or 'fan_crossing', got {name!r}")
