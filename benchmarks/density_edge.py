@@ -71,7 +71,7 @@ def _estimates(chain, det, side):
     im, rec, t = det.images, chain.record, det.table
     resp = point_response(rec, chain.settings.image)
     c = rec.sound_speed_m_s
-    dr, du = det.range_resolution_m, det.azimuth_resolution_rad
+    dr = det.range_resolution_m
     rows = int(round(1.5 * dr / np.diff(im.range_m[:2])[0]))
     t_ax, u_ax = im.time_s, np.sin(im.beam_angle_rad)
     est = {k: (t["psi_rad"].copy(), t["azimuth_rad"].copy(), t["range_m"].copy())

@@ -1357,7 +1357,7 @@ def scaling():
         ax[0].loglog(x, [r["ping_s"] * 1e3 for _, r in ok], "o:", mfc="none", color="C0",
                      label="time per ping, floor in tiles (ms)")
         ax[0].loglog(x, [r["peak_rss_mb"] for _, r in ok], "s:", mfc="none", color="C1",
-                     label=f"peak RSS, floor in tiles (MB)")
+                     label="peak RSS, floor in tiles (MB)")
         ax[0].axhline(_SCALE_TILE_MB, color="C1", lw=0.8, ls="-.")
         ax[0].text(1.2e3, _SCALE_TILE_MB * 1.1, f"tiles' memory setting {_SCALE_TILE_MB:,} MB",
                    color="C1", fontsize=8)
