@@ -140,11 +140,15 @@ def point_response(record, image_settings) -> PointResponse:
     key = (np.asarray(record.replica).tobytes(), float(record.rate_hz), float(record.bandwidth_hz),
            int(record.samples.shape[-1]), np.asarray(record.element_position_m).tobytes(),
            float(record.wavelength_m), image_settings.range_window, image_settings.spatial_window)
-    if key not in _RESPONSES:
+    # the chain's threads share the cache: each returns the response it read or made, never a
+    # second lookup that another thread's clear() may have emptied in between
+    response = _RESPONSES.get(key)
+    if response is None:
+        response = PointResponse(record, image_settings)
         if len(_RESPONSES) > 8:
             _RESPONSES.clear()
-        _RESPONSES[key] = PointResponse(record, image_settings)
-    return _RESPONSES[key]
+        _RESPONSES[key] = response
+    return response
 
 
 def fit_detections(images, record, ping, row, beam, range_m, azimuth_rad, snr_db):
