@@ -193,7 +193,7 @@ def _install_signal_handlers():
         if _inside_compiler(frame):
             # raised inside numba's or llvmlite's Python code (a kernel compiled or loaded from
             # the cache, an LLVM object's finaliser), the interrupt left a dispatcher half made,
-            # and the next call of that kernel crashed the process (exit -11, 4 of 450 SIGINTs
+            # and the next call of that kernel crashed the process (exit -11, 7 of 1,550 SIGINTs
             # in the first synthesis of `abacus simulate` on a loaded machine): raised again,
             # by the thread that re-sends a swallowed interrupt, once the main thread is out
             _deliver_later(signum)
