@@ -512,7 +512,7 @@ class RayScene:
         sp = search(np.broadcast_to(s_img, (n, 3)), e_img,
                     newton_iterations=spec.newton_iterations,
                     focusing_limit_db=spec.focusing_limit_db, height_field=exact,
-                    window=window, near_facets=bool(getattr(spec, "near_facets", False)))
+                    window=window, near_facets=spec.near_facets)
         empty = (np.zeros(0, int), np.zeros((0, 3)), np.zeros(0, complex), np.zeros(0),
                  np.zeros(0, int))
         if not len(sp):

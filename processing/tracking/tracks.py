@@ -124,19 +124,19 @@ def track(tree: xr.DataTree, settings=None) -> xr.DataTree:
     poses = _Poses(tree)
     if baseline is None:
         raise DatasetError(f"tracking needs subarrays A and B in /{ELEMENT_GROUP}/element_subarray")
+    rotation = poses.rotation_of(rows)
+    fan_rad = _elevation_beamwidth_rad(tree, detected.volume)
     cov = measurement_covariance(det["range_m"], det["azimuth_rad"], det["elevation_rad"],
                                  det["snr_db"], range_resolution_m=detected.range_resolution_m,
                                  azimuth_resolution_rad=detected.azimuth_resolution_rad,
                                  wavelength_m=c / f0, baseline_m=baseline,
-                                 interference_db=ts_.interference_db,
-                                 rotation=poses.rotation_of(rows))
+                                 interference_db=ts_.interference_db, rotation=rotation)
     cell = resolution_covariance(det["range_m"], det["azimuth_rad"], det["elevation_rad"],
                                  range_resolution_m=detected.range_resolution_m,
                                  azimuth_resolution_rad=detected.azimuth_resolution_rad,
-                                 elevation_resolution_rad=_elevation_beamwidth_rad(tree, detected.volume),
-                                 rotation=poses.rotation_of(rows))
-    normal = fan_normal(len(rows), poses.rotation_of(rows))
-    fan_width = np.asarray(det["range_m"], float) * _elevation_beamwidth_rad(tree, detected.volume)
+                                 elevation_resolution_rad=fan_rad, rotation=rotation)
+    normal = fan_normal(len(rows), rotation)
+    fan_width = np.asarray(det["range_m"], float) * fan_rad
     fan_centre = (np.zeros(len(rows)) if poses.position is None else
                   np.einsum("ki,ki->k", normal, np.broadcast_to(poses.position if poses.position.ndim == 1
                                                                 else poses.position[rows], normal.shape)))
