@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import datetime as _dt
 import os
-import resource
 import shutil
 import signal
 import subprocess
@@ -30,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))      # run as a script from any folder, installed or not
 ABACUS = [sys.executable, "-m", "abacus"]
 SECRET = "root:x:0:0"          # a line of /etc/passwd: must never appear in a message
 
@@ -131,7 +131,8 @@ def _make_dataset(kind: str, path: Path):
 
         from processing.base.dataset import ELEMENT_GROUP
         good = CACHE / "good.nc"
-        tree = xr.open_datatree(good).load()
+        with xr.open_datatree(good) as opened:    # closed here, not by a collection in a thread
+            tree = opened.load().copy()
         if kind == "truncated":
             path.write_bytes(good.read_bytes()[: good.stat().st_size // 2])
             return
@@ -744,13 +745,23 @@ def _listing(folder: Path) -> set:
     return {str(p.relative_to(folder)) for p in folder.rglob("*")} if folder.exists() else set()
 
 
-def _preexec(limits: dict):
-    def fn():
-        os.setsid()
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)   # a too-large write fails, not kills
-        for name, value in limits.items():
-            resource.setrlimit(getattr(resource, name), (value, value))
-    return fn
+#: run by a fresh interpreter that then becomes the command (``os.execv``): the limits (and
+#: SIGXFSZ ignored, so that a too-large write fails instead of killing) outlive the exec. Not a
+#: ``preexec_fn``: that runs Python in the fork of a threaded process (the probes' pool, the
+#: libraries' threads), which CPython documents as unsafe
+_LIMITED = ("import json, os, resource, signal, sys\n"
+            "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
+            "for name, value in json.loads(sys.argv[1]).items():\n"
+            "    resource.setrlimit(getattr(resource, name), (value, value))\n"
+            "os.execv(sys.argv[2], sys.argv[2:])\n")
+
+
+def _command(argv: list, limits: dict) -> list:
+    """The probe's command line, under ``limits`` (resource name -> soft and hard limit)."""
+    if not limits:
+        return ABACUS + argv
+    import json
+    return [sys.executable, "-c", _LIMITED, json.dumps(limits)] + ABACUS + argv
 
 
 def run_probe(probe: Probe) -> Result:
@@ -784,9 +795,9 @@ def run_probe(probe: Probe) -> Result:
         before = _listing(folder)
         outside_before = {p.name for p in box.iterdir()}
         t0 = time.perf_counter()
-        proc = subprocess.Popen(ABACUS + probe.argv, cwd=folder, env=_env(probe.env),
+        proc = subprocess.Popen(_command(probe.argv, probe.limits), cwd=folder, env=_env(probe.env),
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                preexec_fn=_preexec(probe.limits))
+                                start_new_session=True)
         signalled_at = None
         try:
             if probe.interrupt:
@@ -988,16 +999,41 @@ def report(results) -> str:
     return "\n".join(text) + "\n"
 
 
+#: the classes the test suite runs whole (signals, full disks, memory limits, what a scene may
+#: read); of every other class it runs the first two probes
+SUITE_WHOLE = {"interrupts", "resources", "paths"}
+
+
+def suite_probes() -> list[Probe]:
+    """The probes ``tests/test_reliability.py`` runs (``--suite``)."""
+    seen: dict = {}
+    out = []
+    for p in probes():
+        if p.cls in SUITE_WHOLE or seen.get(p.cls, 0) < 2:
+            out.append(p)
+        seen[p.cls] = seen.get(p.cls, 0) + 1
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", nargs="*", help="probe classes to run")
     ap.add_argument("--list", action="store_true", help="list the probes and exit")
+    ap.add_argument("--suite", action="store_true",
+                    help="run the test suite's probes and print their verdicts as JSON (no report)")
     ap.add_argument("-o", "--out", default=str(ROOT / "docs" / "reliability.md"))
     args = ap.parse_args(argv)
     if args.list:
         for p in probes():
             print(f"{p.cls:22s} {p.name}")
         print(f"{len(probes())} probes")
+        return 0
+    if args.suite:
+        import json
+        prepare()
+        results = run_probes(suite_probes())
+        print(json.dumps([{"cls": r.probe.cls, "name": r.probe.name, "verdict": r.verdict,
+                           "reason": r.reason, "stderr": r.stderr.strip()[-300:]} for r in results]))
         return 0
     results = run_all(set(args.only) if args.only else None)
     text = report(results)
