@@ -17,6 +17,19 @@ if "ABACUS_CACHE_DIR" not in os.environ:
     os.environ["ABACUS_CACHE_DIR"] = _CACHE
 
 
+@pytest.hookimpl(trylast=True)
+def pytest_configure(config):
+    """A crash in compiled code prints the stack of the thread that crashed, not every thread's:
+    a dump of a run's idle pool threads pushed the crashing one out of CI's excerpt."""
+    import faulthandler
+    try:
+        from _pytest.faulthandler import fault_handler_stderr_fd_key
+        fd = config.stash[fault_handler_stderr_fd_key]
+    except (ImportError, KeyError):     # another pytest, or its handler turned off: as it is
+        return
+    faulthandler.enable(file=fd, all_threads=False)
+
+
 def pytest_sessionfinish(session, exitstatus):
     if _CACHE is not None:
         import shutil
