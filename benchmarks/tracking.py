@@ -297,7 +297,7 @@ def tracking_section() -> str:
         "short `max_misses` fragments the dense school, and the longer default (10 pings) is what "
         "brings its count within 5 %; `confirm_resolved` lowers the along-fan over-count (the "
         "duplicate tracks born together at the first pings) and costs the crossing school a "
-        "track or two here (on the development seeds 201–206 it changed nothing there); `split` = none is the "
+        "few tracks here (3 of 263; on the development seeds 201–206 it changed nothing there); `split` = none is the "
         "tracker without the fan-crossing split. Both "
         "longer coasting and `confirm_resolved` keep a track alive or alone where a second fish "
         "is near, and in a dense school that is where one track comes to hold two passages: the "
