@@ -10,13 +10,13 @@ per beam. Each is simulated with seeds never used while the tracker was develope
 defaults were chosen on DEV_SEEDS of both, school_tracks' first ones on 1501, 1–3 and 11–16),
 detected and counted once, then tracked under every setting, so a sweep compares settings on
 identical detections. The fan-crossing split (``track.split``) was developed on DEV_SEEDS, 207
-and 209, checked on 191–200, and run on 181–190 once settled. SEEDS were run on an earlier
-version of it (without the per-line error scales and the straddle condition: crossing school
+and 209, checked on 191–200, and run on 181–190 once settled. The first six SEEDS were run on an
+earlier version of it (without the per-line error scales and the straddle condition: crossing school
 −4.2 %, along the fan +3.6 %) and on this one; the two conditions were chosen on the
 development seeds alone (the straddle condition removed an along-fan cut of one fish's track
 there; with it, the per-line scales change nothing on any development seed, 201–209 or
 191–200; before it they cost a correct cut in each school on 191–200), and the version reported
-is the later one whatever SEEDS said.
+is the later one whatever they said.
 """
 from __future__ import annotations
 
