@@ -177,6 +177,28 @@ def _pair_block(qx, qy, qz, qre, qim, q1, cx, cy, cz, ex0, ex1, ey0, ey1, hkw, h
         buf[2 * _BLOCK + i] = path * inv_c
 
 
+@nb.njit(cache=True, fastmath=True, error_model="numpy")
+def _locate_block(buf, n, t0, fs, q0, n_phase, taps, lo, hi, offset, at):
+    """Where each of a block's arrivals lands on the grid, for :func:`spread8` (vectorised).
+
+    Reads τ from ``buf[2B:2B + n]`` (as :func:`_pair_block` leaves it) and overwrites it with
+    the weight w of the kernel table's forward difference; writes to ``at[:n]`` the sample of
+    the first tap plus ``offset`` (−1: outside [lo, hi), dropped) and to ``at[B:B + n]`` the
+    flat index of the table row. The same operations as :func:`_tap_kernel`, eight arrivals a
+    vector step instead of one at a time in the spreading loop."""
+    half = taps // 2
+    for i in range(n):
+        mu = (buf[2 * _BLOCK + i] - t0) * fs + q0
+        inside = mu >= lo and mu < hi
+        mu = mu if inside else lo  # an integer conversion of any float is then defined
+        m0 = int(mu)
+        x = (mu - m0) * n_phase
+        r = min(int(x), n_phase - 1)
+        buf[2 * _BLOCK + i] = x - r
+        at[i] = offset + m0 - half + 1 if inside else -1
+        at[_BLOCK + i] = r * taps
+
+
 @nb.njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
 def _arrivals(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, inv_lam, alpha,
               small_abs, spreading, baffle):
@@ -298,9 +320,9 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
             n0 = g * _GROUP
             nk = min(_GROUP, n_r - n0)
             buf = np.empty(_GROUP * 3 * _BLOCK)
+            at = np.empty(_GROUP * 2 * _BLOCK, np.int64)
             rre = np.zeros(_GROUP * n_alloc)
             rim = np.zeros(_GROUP * n_alloc)
-            half = taps // 2
             for s0 in range(0, n_s, _BLOCK):
                 s1 = min(s0 + _BLOCK, n_s)
                 for j in range(nk):
@@ -310,19 +332,19 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
                                 ey[n, 0], ey[n, 1], hkw[n], hkh[n], inv_c, inv_lam, alpha,
                                 small_abs, spreading, baffle,
                                 buf[j * 3 * _BLOCK:(j + 1) * 3 * _BLOCK])
+                    _locate_block(buf[j * 3 * _BLOCK:(j + 1) * 3 * _BLOCK], s1 - s0, t0, fs, q0,
+                                  n_phase, taps, lo, hi, j * n_alloc,
+                                  at[j * 2 * _BLOCK:(j + 1) * 2 * _BLOCK])
                 for i in range(s1 - s0):
                     for j in range(nk):
-                        o = j * 3 * _BLOCK + i
-                        mu = (buf[o + 2 * _BLOCK] - t0) * fs + q0
-                        if mu < lo or mu >= hi:
+                        base = at[j * 2 * _BLOCK + i]
+                        if base < 0:
                             continue
-                        m0 = int(mu)
-                        x = (mu - m0) * n_phase
-                        r = min(int(x), n_phase - 1)
-                        w = x - r
-                        base = j * n_alloc + m0 - half + 1
+                        o = j * 3 * _BLOCK + i
+                        row = at[(j * 2 + 1) * _BLOCK + i]
+                        w = buf[o + 2 * _BLOCK]
                         for t in range(0, taps, WIDTH):
-                            spread8(tflat, dflat, r * taps + t, w, rre, rim, base + t, buf[o],
+                            spread8(tflat, dflat, row + t, w, rre, rim, base + t, buf[o],
                                     buf[o + _BLOCK])
             for j in range(nk):
                 row = out[n0 + j]
