@@ -31,7 +31,7 @@ import numpy as np
 
 from acoustics.sonar.arrays import ElementArray
 from acoustics.sonar.directivity import array_response, element_directivity
-from acoustics.synthesis.kernels import EXP_SMALL_LIMIT, cis_cycles, exp_small, sincos
+from acoustics.synthesis.kernels import EXP_SMALL_LIMIT, cis_cycles, exp_small, sine
 from acoustics.synthesis.simd import WIDTH, spread8
 from acoustics.medium import Medium
 from acoustics.sonar import preset
@@ -54,13 +54,12 @@ def _piston(dx, dy, dz, inv_r, ex0, ex1, ey0, ey1, hkw, hkh, baffle):
     if abs(a) < 1e-5:
         num = 1.0 - a * a * (1.0 / 6.0)
     else:
-        num, _ = sincos(a)
+        num = sine(a)
         den = a
     if abs(b) < 1e-5:
         num *= 1.0 - b * b * (1.0 / 6.0)
     else:
-        sb, _ = sincos(b)
-        num *= sb
+        num *= sine(b)
         den *= b
     return num / den
 
