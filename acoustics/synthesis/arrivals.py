@@ -334,6 +334,16 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
                     _locate_block(buf[j * 3 * _BLOCK:(j + 1) * 3 * _BLOCK], s1 - s0, t0, fs, q0,
                                   n_phase, taps, 2 * taps, lo, hi, j * n_alloc,
                                   at[j * 2 * _BLOCK:(j + 1) * 2 * _BLOCK])
+                if taps == WIDTH:  # the default kernel: one vector step, no loop over taps
+                    for i in range(s1 - s0):
+                        for j in range(nk):
+                            base = at[j * 2 * _BLOCK + i]
+                            if base >= 0:
+                                o = j * 3 * _BLOCK + i
+                                spread8(tflat, dflat, at[(j * 2 + 1) * _BLOCK + i],
+                                        buf[o + 2 * _BLOCK], rre, rim, base, buf[o],
+                                        buf[o + _BLOCK])
+                    continue
                 for i in range(s1 - s0):
                     for j in range(nk):
                         base = at[j * 2 * _BLOCK + i]
