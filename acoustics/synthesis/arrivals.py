@@ -545,13 +545,10 @@ def _kernel_inputs(model, positions_m, strength, *, by_range=False, receive_posi
     a path that bounces on its way back (multipath); the transmit leg uses ``positions_m``."""
     p = _positions(positions_m)
     q = np.asarray(strength, complex).reshape(-1)
+    if q.shape[0] != p.shape[0]:
+        raise ValueError("positions_m and strength must describe the same scatterers")
     e_t, r1 = _transmit(model, p)
     alpha = _alpha_np_per_m(model)
-    # k S q E_t g(r1) and, folded in here, the receive leg's absorption up to e^{−α(r2 − r1)}
-    w = np.exp(-2.0 * alpha * r1) if alpha else np.ones_like(r1)
-    if model.spreading:
-        w = w / np.maximum(r1, 1e-3)
-    f_s = model.scale_counts * model.source_level * q * e_t * w
     prx = p if receive_positions_m is None else _positions(receive_positions_m)
     if prx.shape != p.shape:
         raise ValueError("receive_positions_m must have the shape of positions_m")
@@ -570,24 +567,33 @@ def _kernel_inputs(model, positions_m, strength, *, by_range=False, receive_posi
             rx = rx._replace(directivity=rx.directivity[order])
     else:
         order = np.arange(r1.size)
-    return tuple(_columns(order, prx, f_s, r1)) + tuple(rx)
+    return tuple(_columns(order, prx, model.scale_counts * model.source_level, q, e_t, r1,
+                          2.0 * alpha, model.spreading)) + tuple(rx)
 
 
 @nb.njit(cache=True, parallel=True, error_model="numpy")
-def _columns(order, prx, f_s, r1):
+def _columns(order, prx, scale, q, e_t, r1, two_alpha, spreading):
     """The kernels' six input columns (x, y, z of the receive leg's start, Re and Im of the
-    scatterer factor, r1), contiguous, scatterer ``order[i]`` in row i: one parallel pass
-    instead of six strided takes (copies: the values are unchanged)."""
+    scatterer factor, r1), contiguous, scatterer ``order[i]`` in row i, in one parallel pass.
+
+    The scatterer factor is k S q E_t g(r1) with, folded in here, the receive leg's absorption
+    up to e^{−α(r2 − r1)}: ``scale`` q E_t e^{−2α r1} / r1 (``two_alpha`` = 2α in Np/m; 1/r1
+    only with ``spreading``), multiplied in that order."""
     n = order.shape[0]
     out = np.empty((6, n))
     for i in nb.prange(n):
         s = order[i]
+        r = r1[s]
+        w = np.exp(-two_alpha * r) if two_alpha != 0.0 else 1.0
+        if spreading:
+            w = w / max(r, 1e-3)
+        f = scale * q[s] * e_t[s] * w
         out[0, i] = prx[s, 0]
         out[1, i] = prx[s, 1]
         out[2, i] = prx[s, 2]
-        out[3, i] = f_s[s].real
-        out[4, i] = f_s[s].imag
-        out[5, i] = r1[s]
+        out[3, i] = f.real
+        out[4, i] = f.imag
+        out[5, i] = r
     return out[0], out[1], out[2], out[3], out[4], out[5]
 
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 
+import numba as nb
 import numpy as np
 import scipy.fft as sfft
 from scipy.special import i0
@@ -299,6 +300,10 @@ def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
         part = sfft.fft(delta, axis=1, workers=-1, overwrite_x=True)
         if shift_hz not in rep_spec:
             rep_spec[shift_hz] = sfft.fft(rep, nfft)
+        if not doppler:
+            # one group: the product with the pulse and the fold of the decimation in one
+            # parallel pass (the same operations as _every_up_th's)
+            return _decimated(_product_folded(part, rep_spec[shift_hz], up), q0 // up, n)
         part *= rep_spec[shift_hz]
         if spec is None:
             spec = part
@@ -319,6 +324,28 @@ def _even_fast_len(n: int, up: int) -> int:
     while size % up:
         size = sfft.next_fast_len(size + 1)
     return size
+
+
+@nb.njit(cache=True, parallel=True, error_model="numpy")
+def _product_folded(part, rep, up):
+    """(part x rep) folded for :func:`_every_up_th`: Σ_r part[:, f + r M] rep[f + r M] / up with
+    M = N / up, shape (channels, M); sums in the order of numpy's reduction, division of the
+    real and imaginary parts (numba's complex / real would be a complex division)."""
+    n_c, size = part.shape[0], part.shape[1] // up
+    out = np.empty((n_c, size), np.complex128)
+    for c in nb.prange(n_c):
+        for f in range(size):
+            acc = part[c, f] * rep[f]
+            for r in range(1, up):
+                acc += part[c, f + r * size] * rep[f + r * size]
+            out[c, f] = complex(acc.real / up, acc.imag / up)
+    return out
+
+
+def _decimated(folded, start: int, n: int):
+    """Samples start, ..., start + n − 1 of the inverse FFT of ``folded`` (channels, M)."""
+    y = sfft.ifft(folded, axis=-1, workers=-1, overwrite_x=True)
+    return y[..., start:start + n]
 
 
 def _every_up_th(spec, up: int, q0: int, n: int):
