@@ -186,17 +186,19 @@ def _locate_block(buf, n, t0, fs, q0, n_phase, taps, stride, lo, hi, offset, at)
     flat index of the table row (rows ``stride`` apart). The same operations as
     :func:`_tap_kernel`, eight arrivals a vector step instead of one at a time in the spreading
     loop."""
-    half = taps // 2
+    first = offset - taps // 2 + 1
+    last_row = float(n_phase - 1)
     for i in range(n):
+        # branch-free (selects, bitwise and of the bounds), so that the loop vectorises
         mu = (buf[2 * _BLOCK + i] - t0) * fs + q0
-        inside = mu >= lo and mu < hi
+        inside = (mu >= lo) & (mu < hi)
         mu = mu if inside else lo  # an integer conversion of any float is then defined
-        m0 = int(mu)
+        m0 = np.floor(mu)  # mu >= lo > 0: the integer part
         x = (mu - m0) * n_phase
-        r = min(int(x), n_phase - 1)
+        r = min(np.floor(x), last_row)
         buf[2 * _BLOCK + i] = x - r
-        at[i] = offset + m0 - half + 1 if inside else -1
-        at[_BLOCK + i] = r * stride
+        at[i] = first + int(m0) if inside else -1
+        at[_BLOCK + i] = int(r) * stride
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
