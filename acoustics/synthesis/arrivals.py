@@ -42,25 +42,21 @@ _LN10_OVER_20 = np.log(10.0) / 20.0
 
 
 @nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
-def _piston(dx, dy, dz, inv_r, ex0, ex1, ey0, ey1, hkw, hkh, baffle):
+def _piston(dx, dy, dz, inv_r, kx0, kx1, ky0, ky1, baffle):
     """Far-field rectangular piston directivity towards (dx, dy, dz) at distance 1/inv_r:
-    sinc(hkw u_x) sinc(hkh u_y), with one division for both factors."""
+    sinc(a) sinc(b), a = (k w / 2) u·x̂, b = (k h / 2) u·ŷ, with (kx0, kx1) = (k w / 2) x̂ and
+    (ky0, ky1) = (k h / 2) ŷ (x–y components of the element's local axes, scaled), and one
+    division for both factors. Only an argument of exactly 0 takes the limit 1: :func:`sine`
+    is exact to the last bit for tiny arguments (sin a = a there), so sine(a)/a needs no
+    series."""
     if baffle and dz < 0.0:
         return 0.0
-    a = hkw * (dx * ex0 + dy * ex1) * inv_r
-    b = hkh * (dx * ey0 + dy * ey1) * inv_r
-    num = 1.0
-    den = 1.0
-    if abs(a) < 1e-5:
-        num = 1.0 - a * a * (1.0 / 6.0)
-    else:
-        num = sine(a)
-        den = a
-    if abs(b) < 1e-5:
-        num *= 1.0 - b * b * (1.0 / 6.0)
-    else:
-        num *= sine(b)
-        den *= b
+    a = (dx * kx0 + dy * kx1) * inv_r
+    b = (dx * ky0 + dy * ky1) * inv_r
+    za = a == 0.0
+    zb = b == 0.0
+    num = (1.0 if za else sine(a)) * (1.0 if zb else sine(b))
+    den = (1.0 if za else a) * (1.0 if zb else b)
     return num / den
 
 
@@ -80,7 +76,7 @@ def _tx_block(qx, qy, qz, rref, cx, cy, cz, ex0, ex1, ey0, ey1, hkw, hkh, w, inv
         dz = qz[i] - cz
         r = max(np.sqrt(dx * dx + dy * dy + dz * dz), 1e-9)
         inv_r = 1.0 / r
-        d = _piston(dx, dy, dz, inv_r, ex0, ex1, ey0, ey1, hkw, hkh, baffle)
+        d = _piston(dx, dy, dz, inv_r, hkw * ex0, hkw * ex1, hkh * ey0, hkh * ey1, baffle)
         # R_e − R_T by direct subtraction: at sonar ranges that costs ~1e-14 m, i.e. 1e-11 rad
         sn, cs = cis_cycles(-(r - rref[i]) * inv_lam)
         amp = w * d * rref[i] * inv_r
@@ -140,7 +136,7 @@ def _pair(x, y, z, fre, fim, r1, cx, cy, cz, ex0, ex1, ey0, ey1, hkw, hkh, dre, 
         are = dre * g
         aim = dim * g
     else:
-        are = _piston(dx, dy, dz, inv_r, ex0, ex1, ey0, ey1, hkw, hkh, baffle) * g
+        are = _piston(dx, dy, dz, inv_r, hkw * ex0, hkw * ex1, hkh * ey0, hkh * ey1, baffle) * g
         aim = 0.0
     # (fre + j fim)(are + j aim)(cs + j sn)
     pr = fre * are - fim * aim
@@ -155,6 +151,7 @@ def _pair_block(qx, qy, qz, qre, qim, q1, cx, cy, cz, ex0, ex1, ey0, ey1, hkw, h
 
     Writes Re A to ``buf[:n]``, Im A to ``buf[B:B + n]`` and τ to ``buf[2B:2B + n]``."""
     n = qx.shape[0]
+    kx0, kx1, ky0, ky1 = hkw * ex0, hkw * ex1, hkh * ey0, hkh * ey1
     for i in range(n):
         dx = qx[i] - cx
         dy = qy[i] - cy
@@ -167,7 +164,7 @@ def _pair_block(qx, qy, qz, qre, qim, q1, cx, cy, cz, ex0, ex1, ey0, ey1, hkw, h
             g *= exp_small(-alpha * (r2 - q1[i]))
         else:
             g *= np.exp(-alpha * (r2 - q1[i]))
-        g *= _piston(dx, dy, dz, inv_r, ex0, ex1, ey0, ey1, hkw, hkh, baffle)
+        g *= _piston(dx, dy, dz, inv_r, kx0, kx1, ky0, ky1, baffle)
         sn, cs = cis_cycles(-path * inv_lam)
         are = g * qre[i]
         aim = g * qim[i]
