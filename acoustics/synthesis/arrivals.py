@@ -23,6 +23,7 @@ accumulated in the same order whatever the number of threads (bit-identical resu
 """
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -85,15 +86,14 @@ def _tx_block(qx, qy, qz, rref, cx, cy, cz, ex0, ex1, ey0, ey1, hkw, hkh, w, inv
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
-def _tx_far_field(px, py, pz, c, ex, ey, hkw, hkh, w, ref, inv_lam, baffle):
-    """E_t(P) for every scatterer, Σ_e w_e D_e e^{−jk(R_e − R_T)} (R_T/R_e) / Σ w_e, and R_T."""
+def _tx_far_field(px, py, pz, c, ex, ey, hkw, hkh, w, ref, inv_lam, baffle, out, r_out):
+    """E_t(P) for every scatterer, Σ_e w_e D_e e^{−jk(R_e − R_T)} (R_T/R_e) / Σ w_e, into ``out``,
+    and R_T into ``r_out``."""
     n_s = px.shape[0]
     n_e = c.shape[0]
     wsum = 0.0
     for e in range(n_e):
         wsum += w[e]
-    out = np.empty(n_s, np.complex128)
-    r_out = np.empty(n_s)
     n_blocks = (n_s + _BLOCK - 1) // _BLOCK
     for b in nb.prange(n_blocks):
         s0 = b * _BLOCK
@@ -276,13 +276,14 @@ def _add_split(rre, rim, base, ar, ai, k):
 @nb.njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
 def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, inv_lam, alpha,
             small_abs, spreading, baffle, table, dtable, tflat, dflat, t0, fs, q0, n_out,
-            n_alloc):
+            n_alloc, out):
     """Accumulate every arrival onto its channel's delta train through the kernel table.
 
     ``table[i, j]`` is the kernel at tap j for fractional offset i / (rows − 1) and ``dtable``
     its forward difference along i; taps land on samples floor(μ) − L/2 + 1 + j with
     μ = (τ − t0) fs + q0, those of arrivals outside [0, n_out) dropped; the trains are
-    ``n_alloc`` ≥ n_out long, zero beyond n_out (an FFT length: no padded copy). One thread per
+    ``n_alloc`` ≥ n_out long, zero beyond n_out (an FFT length: no padded copy), written to
+    ``out`` (n_r, n_alloc), complex, every sample overwritten. One thread per
     channel, scatterers in the given order: the sums do not depend on the number of threads.
     """
     n_s, n_r = px.shape[0], c.shape[0]
@@ -290,9 +291,9 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
     lo = float(half)
     hi = float(n_out - half)
     if use_d:  # huygens: directivities given, scalar path
-        out = np.zeros((n_r, n_alloc), np.complex128)
         for n in nb.prange(n_r):
             row = out[n]
+            row[:] = 0.0
             for s in range(n_s):
                 d = d_in[s, n]
                 tau, ar, ai = _pair(px[s], py[s], pz[s], fre[s], fim[s], r1[s], c[n, 0], c[n, 1],
@@ -306,9 +307,6 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
     # imaginary parts in two real trains (contiguous multiply-adds), joined at the end
     taps = table.shape[1]
     n_phase = dtable.shape[0]
-    # every sample is written by the join at the end of a channel: no zeroing (4.9 MB at
-    # 10⁵ x 32, in the serial part)
-    out = np.empty((n_r, n_alloc), np.complex128)
     if taps % WIDTH == 0:
         # _GROUP channels a thread, their arrivals taken in turns: an arrival's taps are not
         # loaded straight after the previous arrival of the same channel stored them over the
@@ -483,6 +481,23 @@ class EchoModel:
             baffle=self.baffle)
 
 
+_WORK = threading.local()
+
+
+def _scratch(name: str, shape, dtype) -> np.ndarray:
+    """This thread's work buffer ``name`` as an uninitialised array of ``shape``, reused from
+    call to call (kept at the largest size asked for). A fresh multi-megabyte array is mapped
+    anew by the allocator and pays a page fault per 4 KiB on its first touch — about 0.2 ms per
+    MB on the machine of docs/performance.md, 2.5 ms of a 10⁵ x 32 synthesis. The caller must be
+    done with the previous contents: only the synthesis' internal inputs and trains use it."""
+    size = int(np.prod(shape))
+    buf = getattr(_WORK, name, None)
+    if buf is None or buf.dtype != dtype or buf.size < size:
+        buf = np.empty(size, dtype)
+        setattr(_WORK, name, buf)
+    return buf[:size].reshape(shape)
+
+
 def _positions(positions) -> np.ndarray:
     p = np.ascontiguousarray(np.asarray(positions, float).reshape(-1, 3))
     if not np.all(np.isfinite(p)):
@@ -490,8 +505,10 @@ def _positions(positions) -> np.ndarray:
     return p
 
 
-def _transmit(model: EchoModel, p: np.ndarray):
-    """E_t(P) (complex, shape (S,)) and r1 = |P − T| (m, shape (S,))."""
+def _transmit(model: EchoModel, p: np.ndarray, scratch: bool = False):
+    """E_t(P) (complex, shape (S,)) and r1 = |P − T| (m, shape (S,)); ``scratch``: far-field
+    results in this thread's work buffers (see :func:`_scratch`), for a caller that drops them
+    before the next call."""
     tx = model.transmitter
     ref = tx.phase_center_m
     k = model.wavenumber_rad_m
@@ -500,11 +517,16 @@ def _transmit(model: EchoModel, p: np.ndarray):
                              subdivisions=model.subdivisions, baffle=model.baffle, reference_m=ref)
         return e_t, np.linalg.norm(p - ref, axis=1)
     ex, ey = tx.local_axes
-    return _tx_far_field(np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
-                         np.ascontiguousarray(p[:, 2]), np.ascontiguousarray(tx.center_m),
-                         np.ascontiguousarray(ex[:, :2]), np.ascontiguousarray(ey[:, :2]),
-                         0.5 * k * tx.width_m, 0.5 * k * tx.height_m, tx.weight, ref,
-                         model.center_frequency_hz / model.medium.sound_speed_m_s, model.baffle)
+    if scratch:
+        e_t, r1 = _scratch("e_t", p.shape[0], np.complex128), _scratch("r1", p.shape[0], np.float64)
+    else:
+        e_t, r1 = np.empty(p.shape[0], np.complex128), np.empty(p.shape[0])
+    _tx_far_field(np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
+                  np.ascontiguousarray(p[:, 2]), np.ascontiguousarray(tx.center_m),
+                  np.ascontiguousarray(ex[:, :2]), np.ascontiguousarray(ey[:, :2]),
+                  0.5 * k * tx.width_m, 0.5 * k * tx.height_m, tx.weight, ref,
+                  model.center_frequency_hz / model.medium.sound_speed_m_s, model.baffle, e_t, r1)
+    return e_t, r1
 
 
 def _alpha_np_per_m(model: EchoModel) -> float:
@@ -546,7 +568,7 @@ def _kernel_inputs(model, positions_m, strength, *, by_range=False, receive_posi
     q = np.asarray(strength, complex).reshape(-1)
     if q.shape[0] != p.shape[0]:
         raise ValueError("positions_m and strength must describe the same scatterers")
-    e_t, r1 = _transmit(model, p)
+    e_t, r1 = _transmit(model, p, scratch=True)
     alpha = _alpha_np_per_m(model)
     prx = p if receive_positions_m is None else _positions(receive_positions_m)
     if prx.shape != p.shape:
@@ -566,20 +588,21 @@ def _kernel_inputs(model, positions_m, strength, *, by_range=False, receive_posi
             rx = rx._replace(directivity=rx.directivity[order])
     else:
         order = np.arange(r1.size)
-    return tuple(_columns(order, prx, model.scale_counts * model.source_level, q, e_t, r1,
-                          2.0 * alpha, model.spreading)) + tuple(rx)
+    cols = _scratch("columns", (6, r1.size), np.float64)
+    _columns(order, prx, model.scale_counts * model.source_level, q, e_t, r1, 2.0 * alpha,
+             model.spreading, cols)
+    return tuple(cols) + tuple(rx)
 
 
 @nb.njit(cache=True, parallel=True, error_model="numpy")
-def _columns(order, prx, scale, q, e_t, r1, two_alpha, spreading):
+def _columns(order, prx, scale, q, e_t, r1, two_alpha, spreading, out):
     """The kernels' six input columns (x, y, z of the receive leg's start, Re and Im of the
     scatterer factor, r1), contiguous, scatterer ``order[i]`` in row i, in one parallel pass.
 
     The scatterer factor is k S q E_t g(r1) with, folded in here, the receive leg's absorption
     up to e^{−α(r2 − r1)}: ``scale`` q E_t e^{−2α r1} / r1 (``two_alpha`` = 2α in Np/m; 1/r1
-    only with ``spreading``), multiplied in that order."""
+    only with ``spreading``), multiplied in that order. Written to ``out`` (6, S)."""
     n = order.shape[0]
-    out = np.empty((6, n))
     for i in nb.prange(n):
         s = order[i]
         r = r1[s]
@@ -593,7 +616,6 @@ def _columns(order, prx, scale, q, e_t, r1, two_alpha, spreading):
         out[3, i] = f.real
         out[4, i] = f.imag
         out[5, i] = r
-    return out[0], out[1], out[2], out[3], out[4], out[5]
 
 
 def arrivals(model: EchoModel, positions_m, strength, *, receive_positions_m=None):
@@ -614,13 +636,15 @@ def arrivals(model: EchoModel, positions_m, strength, *, receive_positions_m=Non
 
 
 def spread_arrivals(model: EchoModel, positions_m, strength, *, table, t0_s, rate_hz, q0, n_out,
-                    receive_positions_m=None, length=None):
+                    receive_positions_m=None, length=None, scratch=False):
     """The channels' fractional-delay delta trains, shape (N_rx, length), complex128.
 
     Arrivals land on samples [0, n_out) (the rest are dropped); ``length`` (≥ n_out, default
     n_out) pads the trains with zeros, e.g. to the FFT length that convolves them. Scatterers are
     visited in order of range (a stable sort), so the delta trains are written nearly
-    sequentially; the order is fixed by the scene, never by the thread count.
+    sequentially; the order is fixed by the scene, never by the thread count. ``scratch``: the
+    trains in this thread's work buffer (see :func:`_scratch`), overwritten by the next call
+    that asks for it — for a caller that is done with them by then.
     """
     args = _kernel_inputs(model, positions_m, strength, by_range=True,
                           receive_positions_m=receive_positions_m)
@@ -630,8 +654,11 @@ def spread_arrivals(model: EchoModel, positions_m, strength, *, table, t0_s, rat
         raise ValueError(f"length {length} < n_out {n_out}")
     dtable = np.ascontiguousarray(np.diff(table, axis=0))
     tflat, dflat = _interleaved(table, dtable)
-    out = _spread(*args, table, dtable, tflat, dflat, float(t0_s), float(rate_hz), float(q0),
-                  int(n_out), length)
+    n_rx = model.receiver.n_elements
+    out = (_scratch("trains", (n_rx, length), np.complex128) if scratch
+           else np.empty((n_rx, length), np.complex128))
+    _spread(*args, table, dtable, tflat, dflat, float(t0_s), float(rate_hz), float(q0),
+            int(n_out), length, out)
     return out
 
 

@@ -294,9 +294,11 @@ def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
                     acc = np.zeros((delta.shape[0], nfft), complex)
                 acc[:, g_lo:g_lo + span + m - 1] += y
                 continue
-        # the trains come at the FFT's length (no padded copy), transformed in place
+        # the trains come at the FFT's length (no padded copy), transformed in place; one
+        # group is done with them before this thread's next synthesis: its work buffer
         delta = spread_arrivals(model, pk, qk, table=table, t0_s=t0, rate_hz=fine, q0=q0,
-                                n_out=n_out, receive_positions_m=rk, length=nfft)
+                                n_out=n_out, receive_positions_m=rk, length=nfft,
+                                scratch=not doppler)
         part = sfft.fft(delta, axis=1, workers=-1, overwrite_x=True)
         if shift_hz not in rep_spec:
             rep_spec[shift_hz] = sfft.fft(rep, nfft)
