@@ -588,25 +588,31 @@ def _kernel_inputs(model, positions_m, strength, *, by_range=False, receive_posi
             rx = rx._replace(directivity=rx.directivity[order])
     else:
         order = np.arange(r1.size)
+    # e^{−2α r1} by numpy's vectorised exp (numba's calls libm once per scatterer)
+    decay = _scratch("decay", r1.size, np.float64)
+    if alpha:
+        np.exp(np.multiply(r1, -2.0 * alpha, out=decay), out=decay)
+    else:
+        decay.fill(1.0)
     cols = _scratch("columns", (6, r1.size), np.float64)
-    _columns(order, prx, model.scale_counts * model.source_level, q, e_t, r1, 2.0 * alpha,
+    _columns(order, prx, model.scale_counts * model.source_level, q, e_t, r1, decay,
              model.spreading, cols)
     return tuple(cols) + tuple(rx)
 
 
 @nb.njit(cache=True, parallel=True, error_model="numpy")
-def _columns(order, prx, scale, q, e_t, r1, two_alpha, spreading, out):
+def _columns(order, prx, scale, q, e_t, r1, decay, spreading, out):
     """The kernels' six input columns (x, y, z of the receive leg's start, Re and Im of the
     scatterer factor, r1), contiguous, scatterer ``order[i]`` in row i, in one parallel pass.
 
     The scatterer factor is k S q E_t g(r1) with, folded in here, the receive leg's absorption
-    up to e^{−α(r2 − r1)}: ``scale`` q E_t e^{−2α r1} / r1 (``two_alpha`` = 2α in Np/m; 1/r1
-    only with ``spreading``), multiplied in that order. Written to ``out`` (6, S)."""
+    up to e^{−α(r2 − r1)}: ``scale`` q E_t e^{−2α r1} / r1 (``decay`` = e^{−2α r1}; 1/r1 only
+    with ``spreading``), multiplied in that order. Written to ``out`` (6, S)."""
     n = order.shape[0]
     for i in nb.prange(n):
         s = order[i]
         r = r1[s]
-        w = np.exp(-two_alpha * r) if two_alpha != 0.0 else 1.0
+        w = decay[s]
         if spreading:
             w = w / max(r, 1e-3)
         f = scale * q[s] * e_t[s] * w

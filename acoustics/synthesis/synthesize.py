@@ -301,7 +301,8 @@ def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
                                 scratch=not doppler)
         part = sfft.fft(delta, axis=1, workers=-1, overwrite_x=True)
         if shift_hz not in rep_spec:
-            rep_spec[shift_hz] = sfft.fft(rep, nfft)
+            rep_spec[shift_hz] = (_replica_spectrum(pulse, fine, nfft) if not shift_hz
+                                  else sfft.fft(rep, nfft))
         if not doppler:
             # one group: the product with the pulse and the fold of the decimation in one
             # parallel pass (the same operations as _every_up_th's)
@@ -318,6 +319,15 @@ def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
     if out is None:
         return np.zeros((model.receiver.n_elements, n), complex)
     return out
+
+
+@lru_cache(maxsize=8)
+def _replica_spectrum(pulse: Pulse, rate_hz: float, nfft: int):
+    """The FFT (length ``nfft``) of the pulse's replica at ``rate_hz``: the same every ping of a
+    run (read-only)."""
+    spec = sfft.fft(pulse.replica(rate_hz), nfft)
+    spec.flags.writeable = False
+    return spec
 
 
 def _even_fast_len(n: int, up: int) -> int:
