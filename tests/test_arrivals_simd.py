@@ -105,3 +105,24 @@ def test_spread8_adds_eight_interpolated_taps_and_nothing_else():
     np.testing.assert_allclose(rre, want_re, rtol=0, atol=4e-16 * 8)
     np.testing.assert_allclose(rim, want_im, rtol=0, atol=4e-16 * 8)
     assert np.array_equal(rre[:11], want_re[:11]) and np.array_equal(rre[19:], want_re[19:])
+
+
+def test_results_outlive_the_next_call_work_buffers_are_internal():
+    """The synthesis keeps its large work arrays per thread between calls; what it returns
+    must not be one of them: a second call on other scatterers leaves the first result as it
+    was."""
+    from acoustics.sonar.pulse import Pulse
+    from acoustics.synthesis.synthesize import synthesize
+    model = _model(13)
+    p1, q1 = _scatterers(500, seed=1)
+    p2, q2 = _scatterers(700, seed=2)
+    kw = dict(pulse=Pulse(), rate_hz=preset.SAMPLE_RATE_HZ, n_samples=1024)
+    first = synthesize(model, p1, q1, **kw)
+    kept = first.copy()
+    second = synthesize(model, p2, q2, **kw)
+    assert np.array_equal(first, kept) and not np.array_equal(first, second)
+    tk = dict(table=fractional_delay_table(8, 0.4), t0_s=0.0, rate_hz=90910.0, q0=40, n_out=5000)
+    trains = spread_arrivals(model, p1, q1, **tk)
+    kept = trains.copy()
+    spread_arrivals(model, p2, q2, **tk)
+    assert np.array_equal(trains, kept)
