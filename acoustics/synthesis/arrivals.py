@@ -594,34 +594,40 @@ def _kernel_inputs(model, positions_m, strength, *, by_range=False, receive_posi
         np.exp(np.multiply(r1, -2.0 * alpha, out=decay), out=decay)
     else:
         decay.fill(1.0)
+    f_s = _scratch("factor", r1.size, np.complex128)
+    _factor(model.scale_counts * model.source_level, q, e_t, decay, r1, model.spreading, f_s)
     cols = _scratch("columns", (6, r1.size), np.float64)
-    _columns(order, prx, model.scale_counts * model.source_level, q, e_t, r1, decay,
-             model.spreading, cols)
+    _columns(order, prx, f_s, r1, cols)
     return tuple(cols) + tuple(rx)
 
 
 @nb.njit(cache=True, parallel=True, error_model="numpy")
-def _columns(order, prx, scale, q, e_t, r1, decay, spreading, out):
-    """The kernels' six input columns (x, y, z of the receive leg's start, Re and Im of the
-    scatterer factor, r1), contiguous, scatterer ``order[i]`` in row i, in one parallel pass.
-
-    The scatterer factor is k S q E_t g(r1) with, folded in here, the receive leg's absorption
+def _factor(scale, q, e_t, decay, r1, spreading, out):
+    """The scatterer factor k S q E_t g(r1) with, folded in here, the receive leg's absorption
     up to e^{−α(r2 − r1)}: ``scale`` q E_t e^{−2α r1} / r1 (``decay`` = e^{−2α r1}; 1/r1 only
-    with ``spreading``), multiplied in that order. Written to ``out`` (6, S)."""
+    with ``spreading``), multiplied in that order, into ``out`` (S,), in input order (one
+    sequential pass: the gather that reorders it then reads one array, not four)."""
+    for s in nb.prange(q.shape[0]):
+        w = decay[s]
+        if spreading:
+            w = w / max(r1[s], 1e-3)
+        out[s] = scale * q[s] * e_t[s] * w
+
+
+@nb.njit(cache=True, parallel=True, error_model="numpy")
+def _columns(order, prx, f_s, r1, out):
+    """The kernels' six input columns (x, y, z of the receive leg's start, Re and Im of the
+    scatterer factor, r1), contiguous, scatterer ``order[i]`` in row i, into ``out`` (6, S):
+    one parallel pass instead of six strided takes (copies: the values are unchanged)."""
     n = order.shape[0]
     for i in nb.prange(n):
         s = order[i]
-        r = r1[s]
-        w = decay[s]
-        if spreading:
-            w = w / max(r, 1e-3)
-        f = scale * q[s] * e_t[s] * w
         out[0, i] = prx[s, 0]
         out[1, i] = prx[s, 1]
         out[2, i] = prx[s, 2]
-        out[3, i] = f.real
-        out[4, i] = f.imag
-        out[5, i] = r
+        out[3, i] = f_s[s].real
+        out[4, i] = f_s[s].imag
+        out[5, i] = r1[s]
 
 
 def arrivals(model: EchoModel, positions_m, strength, *, receive_positions_m=None):
