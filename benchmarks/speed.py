@@ -1251,7 +1251,7 @@ def synthesis_ab():
                      "now / before issue 31"], rows)
             + "\n\nWhat changed in this round (each channel still sums its arrivals in the same "
               "order, so the result is bit-identical for any thread count: tests/test_simulate.py, "
-              "tests/test_arrivals_simd.py; the sums are within 5e-16 of the peak of the previous "
+              "tests/test_arrivals_simd.py; the sums are within 5.1e-16 of the peak of the previous "
               "round's on fifteen cases — default, multipath, L = 16 at U = 1, Doppler bank and "
               "bins, scatterers at 0.3–2.5 m, near endfire, Huygens, no and strong absorption, "
               "`exact`, arrivals): (1) per-thread work buffers (`_scratch` in "
