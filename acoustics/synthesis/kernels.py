@@ -10,7 +10,7 @@ argument reduction. Here the phase is reduced *in cycles* first — frac((r1 + r
 - :func:`sine` : sin x alone, |x| ≲ 10³ rad, reduced by π to [−π/2, π/2] and one odd
   polynomial (about half the work of :func:`sincos`: one polynomial and a sign, where the
   quadrant of :func:`sincos` needs both polynomials and selects between them);
-- :func:`cis_cycles` : e^{j2πc} for any c, via frac(c);
+- :func:`cis_cycles` : e^{j2πc} for any c, reduced in quarter cycles (exact);
 - :func:`sin_over` : sin(a)/a, exactly 1 at a = 0;
 - :func:`exp_small` : e^x for |x| <= 0.05 (degree-8 Taylor, relative error < 1e-16), used for
   the absorption difference between the two legs of a path.
@@ -75,9 +75,19 @@ def sine(x):
 
 @nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
 def cis_cycles(cycles):
-    """(sin 2πc, cos 2πc) for any float64 c, reduced in cycles first."""
-    f = cycles - np.floor(cycles + 0.5)
-    return sincos(_TWO_PI * f)
+    """(sin 2πc, cos 2πc) for any float64 c, reduced in quarter cycles: 4c = q + f with q an
+    integer and |f| <= 1/2, both exact in float64, so only the polynomials' argument (π/2) f
+    is rounded (:func:`sincos`'s kernels and quadrant selects, without its reduction)."""
+    c4 = 4.0 * cycles
+    q = np.floor(c4 + 0.5)
+    r = (c4 - q) * _PIO2
+    z = r * r
+    s = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
+    c = 1.0 - 0.5 * z + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
+    qi = int(q) & 3
+    a = c if qi & 1 else s
+    b = s if qi & 1 else c
+    return (-a if qi & 2 else a), (-b if (qi + 1) & 2 else b)
 
 
 @nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
