@@ -198,6 +198,22 @@ def _locate_block(buf, n, t0, fs, q0, n_phase, taps, stride, lo, hi, offset, at)
         at[_BLOCK + i] = int(r) * stride
 
 
+@nb.njit(cache=True, fastmath=True, error_model="numpy", boundscheck=False)
+def _spread_block8(at, buf, n, nk, tflat, dflat, rre, rim):
+    """Spread a block's located arrivals of ``nk`` channels, taken in turns, one 8-tap vector
+    step each."""
+    for i in range(n):
+        ui = np.uint64(i)
+        for j in range(nk):
+            uj = np.uint64(j)
+            base = at[uj * np.uint64(2 * _BLOCK) + ui]
+            if base >= 0:
+                o = uj * np.uint64(3 * _BLOCK) + ui
+                spread8(tflat, dflat, at[(uj * np.uint64(2) + np.uint64(1)) * np.uint64(_BLOCK) + ui],
+                        buf[o + np.uint64(2 * _BLOCK)], rre, rim, base, buf[o],
+                        buf[o + np.uint64(_BLOCK)])
+
+
 @nb.njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
 def _arrivals(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, inv_lam, alpha,
               small_abs, spreading, baffle):
@@ -332,14 +348,7 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
                                   n_phase, taps, 2 * taps, lo, hi, j * n_alloc,
                                   at[j * 2 * _BLOCK:(j + 1) * 2 * _BLOCK])
                 if taps == WIDTH:  # the default kernel: one vector step, no loop over taps
-                    for i in range(s1 - s0):
-                        for j in range(nk):
-                            base = at[j * 2 * _BLOCK + i]
-                            if base >= 0:
-                                o = j * 3 * _BLOCK + i
-                                spread8(tflat, dflat, at[(j * 2 + 1) * _BLOCK + i],
-                                        buf[o + 2 * _BLOCK], rre, rim, base, buf[o],
-                                        buf[o + _BLOCK])
+                    _spread_block8(at, buf, s1 - s0, nk, tflat, dflat, rre, rim)
                     continue
                 for i in range(s1 - s0):
                     for j in range(nk):
