@@ -126,3 +126,13 @@ def test_results_outlive_the_next_call_work_buffers_are_internal():
     kept = trains.copy()
     spread_arrivals(model, p2, q2, **tk)
     assert np.array_equal(trains, kept)
+
+
+def test_work_buffers_are_reused_below_their_cap_and_not_kept_above_it():
+    from acoustics.synthesis import arrivals as A
+    small = A._scratch("test_small", (3, 100), np.float64)
+    assert np.shares_memory(small, A._scratch("test_small", (2, 50), np.float64))
+    n = A._SCRATCH_MAX_BYTES // 8 + 1
+    big = A._scratch("test_big", n, np.float64)
+    assert not np.shares_memory(big, A._scratch("test_big", n, np.float64))
+    assert getattr(A._WORK, "test_big", None) is None

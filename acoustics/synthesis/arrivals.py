@@ -494,15 +494,22 @@ class EchoModel:
 
 
 _WORK = threading.local()
+#: the largest work buffer kept between calls (bytes); a larger one is allocated afresh each time,
+#: so that what a thread keeps stays below 6 x this (the synthesis' six buffers) whatever the
+#: scene: 10⁵ scatterers x 32 channels need 4.9 MB at most
+_SCRATCH_MAX_BYTES = 8_000_000
 
 
 def _scratch(name: str, shape, dtype) -> np.ndarray:
     """This thread's work buffer ``name`` as an uninitialised array of ``shape``, reused from
-    call to call (kept at the largest size asked for). A fresh multi-megabyte array is mapped
-    anew by the allocator and pays a page fault per 4 KiB on its first touch — about 0.2 ms per
-    MB on the machine of docs/performance.md, 2.5 ms of a 10⁵ x 32 synthesis. The caller must be
-    done with the previous contents: only the synthesis' internal inputs and trains use it."""
+    call to call (kept at the largest size asked for, up to ``_SCRATCH_MAX_BYTES``). A fresh
+    multi-megabyte array is mapped anew by the allocator and pays a page fault per 4 KiB on its
+    first touch — about 0.2 ms per MB on the machine of docs/performance.md, 2.5 ms of a
+    10⁵ x 32 synthesis. The caller must be done with the previous contents: only the
+    synthesis' internal inputs and trains use it."""
     size = int(np.prod(shape))
+    if size * np.dtype(dtype).itemsize > _SCRATCH_MAX_BYTES:
+        return np.empty(shape, dtype)
     buf = getattr(_WORK, name, None)
     if buf is None or buf.dtype != dtype or buf.size < size:
         buf = np.empty(size, dtype)
