@@ -136,3 +136,18 @@ def test_work_buffers_are_reused_below_their_cap_and_not_kept_above_it():
     big = A._scratch("test_big", n, np.float64)
     assert not np.shares_memory(big, A._scratch("test_big", n, np.float64))
     assert getattr(A._WORK, "test_big", None) is None
+
+
+def test_a_changed_kernel_table_is_never_served_from_the_cache():
+    """The table's difference and interleaved forms are kept per read-only table; a writeable
+    table (which could change under the same id) is read afresh every call."""
+    model = _model(5)
+    p, q = _scatterers(200, seed=4)
+    kw = dict(t0_s=0.0, rate_hz=90910.0, q0=40, n_out=5000)
+    ro = fractional_delay_table(8, 0.4)
+    rw = ro.copy()
+    a = spread_arrivals(model, p, q, table=ro, **kw)
+    assert np.array_equal(spread_arrivals(model, p, q, table=rw, **kw), a)
+    rw *= 2.0
+    np.testing.assert_allclose(spread_arrivals(model, p, q, table=rw, **kw), 2.0 * a, rtol=1e-12,
+                               atol=1e-12 * np.abs(a).max())

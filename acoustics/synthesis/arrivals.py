@@ -23,6 +23,7 @@ accumulated in the same order whatever the number of threads (bit-identical resu
 """
 from __future__ import annotations
 
+import math
 import threading
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -507,7 +508,7 @@ def _scratch(name: str, shape, dtype) -> np.ndarray:
     first touch — about 0.2 ms per MB on the machine of docs/performance.md, 2.5 ms of a
     10⁵ x 32 synthesis. The caller must be done with the previous contents: only the
     synthesis' internal inputs and trains use it."""
-    size = int(np.prod(shape))
+    size = math.prod(shape) if isinstance(shape, tuple) else int(shape)
     if size * np.dtype(dtype).itemsize > _SCRATCH_MAX_BYTES:
         return np.empty(shape, dtype)
     buf = getattr(_WORK, name, None)
@@ -683,14 +684,32 @@ def spread_arrivals(model: EchoModel, positions_m, strength, *, table, t0_s, rat
     length = int(n_out) if length is None else int(length)
     if length < n_out:
         raise ValueError(f"length {length} < n_out {n_out}")
-    dtable = np.ascontiguousarray(np.diff(table, axis=0))
-    tflat, dflat = _interleaved(table, dtable)
+    dtable, tflat, dflat = _table_forms(table)
     n_rx = model.receiver.n_elements
     out = (_scratch("trains", (n_rx, length), np.complex128) if scratch
            else np.empty((n_rx, length), np.complex128))
     _spread(*args, table, dtable, tflat, dflat, float(t0_s), float(rate_hz), float(q0),
             int(n_out), length, out)
     return out
+
+
+_TABLE_FORMS: dict = {}
+
+
+def _table_forms(table):
+    """(forward difference, interleaved views) of a kernel table, made once per table object
+    (:func:`~acoustics.synthesis.synthesize.fractional_delay_table` returns the same read-only
+    table for the same arguments): a few recent tables are kept, each with its forms."""
+    hit = _TABLE_FORMS.get(id(table))
+    if hit is not None and hit[0] is table:
+        return hit[1:]
+    dtable = np.ascontiguousarray(np.diff(table, axis=0))
+    forms = (dtable,) + _interleaved(table, dtable)
+    if not table.flags.writeable:  # a table that cannot change under its id
+        if len(_TABLE_FORMS) >= 8:
+            _TABLE_FORMS.pop(next(iter(_TABLE_FORMS)))
+        _TABLE_FORMS[id(table)] = (table,) + forms
+    return forms
 
 
 def _interleaved(table, dtable):

@@ -251,7 +251,7 @@ def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
     the replica shifted by shift_hz; None: one group, unshifted. A Doppler group whose echoes
     span a short stretch of the record is convolved over that stretch alone (overlap-add)."""
     fine = fs * up
-    replica = pulse.replica(fine)
+    replica = _replica(pulse, fine)
     m = replica.size
     # room for an echo that starts up to a pulse length plus half a kernel before sample 0; a
     # whole number of output samples, so the output keeps every up-th fine sample from q0
@@ -322,10 +322,18 @@ def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
 
 
 @lru_cache(maxsize=8)
+def _replica(pulse: Pulse, rate_hz: float):
+    """The pulse's replica at ``rate_hz``: the same every ping of a run (read-only)."""
+    rep = pulse.replica(rate_hz)
+    rep.flags.writeable = False
+    return rep
+
+
+@lru_cache(maxsize=8)
 def _replica_spectrum(pulse: Pulse, rate_hz: float, nfft: int):
     """The FFT (length ``nfft``) of the pulse's replica at ``rate_hz``: the same every ping of a
     run (read-only)."""
-    spec = sfft.fft(pulse.replica(rate_hz), nfft)
+    spec = sfft.fft(_replica(pulse, rate_hz), nfft)
     spec.flags.writeable = False
     return spec
 
