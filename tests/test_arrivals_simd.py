@@ -105,3 +105,49 @@ def test_spread8_adds_eight_interpolated_taps_and_nothing_else():
     np.testing.assert_allclose(rre, want_re, rtol=0, atol=4e-16 * 8)
     np.testing.assert_allclose(rim, want_im, rtol=0, atol=4e-16 * 8)
     assert np.array_equal(rre[:11], want_re[:11]) and np.array_equal(rre[19:], want_re[19:])
+
+
+def test_results_outlive_the_next_call_work_buffers_are_internal():
+    """The synthesis keeps its large work arrays per thread between calls; what it returns
+    must not be one of them: a second call on other scatterers leaves the first result as it
+    was."""
+    from acoustics.sonar.pulse import Pulse
+    from acoustics.synthesis.synthesize import synthesize
+    model = _model(13)
+    p1, q1 = _scatterers(500, seed=1)
+    p2, q2 = _scatterers(700, seed=2)
+    kw = dict(pulse=Pulse(), rate_hz=preset.SAMPLE_RATE_HZ, n_samples=1024)
+    first = synthesize(model, p1, q1, **kw)
+    kept = first.copy()
+    second = synthesize(model, p2, q2, **kw)
+    assert np.array_equal(first, kept) and not np.array_equal(first, second)
+    tk = dict(table=fractional_delay_table(8, 0.4), t0_s=0.0, rate_hz=90910.0, q0=40, n_out=5000)
+    trains = spread_arrivals(model, p1, q1, **tk)
+    kept = trains.copy()
+    spread_arrivals(model, p2, q2, **tk)
+    assert np.array_equal(trains, kept)
+
+
+def test_work_buffers_are_reused_below_their_cap_and_not_kept_above_it():
+    from acoustics.synthesis import arrivals as A
+    small = A._scratch("test_small", (3, 100), np.float64)
+    assert np.shares_memory(small, A._scratch("test_small", (2, 50), np.float64))
+    n = A._SCRATCH_MAX_BYTES // 8 + 1
+    big = A._scratch("test_big", n, np.float64)
+    assert not np.shares_memory(big, A._scratch("test_big", n, np.float64))
+    assert getattr(A._WORK, "test_big", None) is None
+
+
+def test_a_changed_kernel_table_is_never_served_from_the_cache():
+    """The table's difference and interleaved forms are kept per read-only table; a writeable
+    table (which could change under the same id) is read afresh every call."""
+    model = _model(5)
+    p, q = _scatterers(200, seed=4)
+    kw = dict(t0_s=0.0, rate_hz=90910.0, q0=40, n_out=5000)
+    ro = fractional_delay_table(8, 0.4)
+    rw = ro.copy()
+    a = spread_arrivals(model, p, q, table=ro, **kw)
+    assert np.array_equal(spread_arrivals(model, p, q, table=rw, **kw), a)
+    rw *= 2.0
+    np.testing.assert_allclose(spread_arrivals(model, p, q, table=rw, **kw), 2.0 * a, rtol=1e-12,
+                               atol=1e-12 * np.abs(a).max())

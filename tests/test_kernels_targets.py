@@ -12,7 +12,7 @@ from scipy import stats
 from acoustics import SceneWarning
 from acoustics.sonar.directivity import array_response, element_directivity
 from acoustics.synthesis.arrivals import EchoModel, arrivals
-from acoustics.synthesis.kernels import EXP_SMALL_LIMIT, cis_cycles, exp_small, sin_over, sincos
+from acoustics.synthesis.kernels import EXP_SMALL_LIMIT, cis_cycles, exp_small, sin_over, sincos, sine
 from acoustics.medium import Medium
 from acoustics.synthesis.receiver import quantize
 from acoustics.scene import scene_from_text
@@ -32,6 +32,8 @@ def _eval(xs, which):
             a, b = cis_cycles(xs[i])
         elif which == 2:
             a, b = sin_over(xs[i]), 0.0
+        elif which == 4:
+            a, b = sine(xs[i]), 0.0
         else:
             a, b = exp_small(xs[i]), 0.0
         out[i, 0], out[i, 1] = a, b
@@ -45,6 +47,20 @@ def test_sincos_over_its_domain():
     tol = 2e-16 * (4 + np.abs(x))  # rounding of q·π/2 and of π/2 itself grow with x
     assert np.all(np.abs(out[:, 0] - np.sin(x)) <= tol)
     assert np.all(np.abs(out[:, 1] - np.cos(x)) <= tol)
+
+
+def test_sine_over_its_domain():
+    """The piston's sine (reduced by π, one polynomial) is as exact as sincos on |x| <= 1e3,
+    including the reduction's seams (odd multiples of π/2) and its zeros (multiples of π)."""
+    k = np.arange(-40, 41)
+    x = np.concatenate([np.random.default_rng(4).uniform(-1000, 1000, 200_000),
+                        np.random.default_rng(5).uniform(-20, 20, 100_000),
+                        k * np.pi, (k + 0.5) * np.pi, np.nextafter((k + 0.5) * np.pi, np.inf),
+                        [0.0, -0.0, 1e-300, -1e-8]])
+    out = _eval(x, 4)[:, 0]
+    assert np.all(np.abs(out - np.sin(x)) <= 2e-16 * (4 + np.abs(x)))
+    small = np.abs(x) < 1.0  # no reduction: relative accuracy near zero
+    assert np.all(np.abs(out[small] - np.sin(x[small])) <= 2.3e-16 * np.abs(np.sin(x[small])))
 
 
 def test_cis_cycles_for_two_way_paths_of_70_m():
@@ -170,3 +186,10 @@ def test_world_frame_targets_follow_the_pose():
     from acoustics.sonar.build import build_sonar
     t = draw_targets(make_setup(s).targets, 0, build_sonar(s).pose)
     np.testing.assert_allclose(t.position_sonar_m[0], [1, 0, 20], atol=1e-12)
+
+
+def test_arrivals_reject_strengths_of_another_length_in_one_line():
+    son = preset_sonar()
+    model = EchoModel(son.transmitter, son.receiver.elements, Medium(1530.0, 0.1), 420_375.0, 1.0)
+    with pytest.raises(ValueError, match="positions_m and strength must describe the same scatterers"):
+        arrivals(model, np.array([[0.0, 0.0, 20.0], [1.0, 0.0, 30.0]]), np.ones(3))

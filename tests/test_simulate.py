@@ -342,6 +342,21 @@ def test_every_up_th_sample_of_an_inverse_fft_by_folding_its_spectrum(up, q0):
     np.testing.assert_allclose(_every_up_th(spec.copy(), up, q0, n), full, rtol=0, atol=1e-15)
 
 
+@pytest.mark.parametrize("up, q0", [(1, 7), (2, 10), (3, 9)])
+def test_product_with_the_pulse_folded_is_every_up_th_sample_of_the_convolution(up, q0):
+    """The no-Doppler path multiplies the trains' spectra by the pulse's and folds them in one
+    pass: every up-th sample of the inverse FFT of the product (the circular convolution)."""
+    from acoustics.synthesis.synthesize import _decimated, _even_fast_len, _product_folded
+    rng = np.random.default_rng(10 + up)
+    size = _even_fast_len(900, up)
+    part = rng.standard_normal((5, size)) + 1j * rng.standard_normal((5, size))
+    rep = rng.standard_normal(size) + 1j * rng.standard_normal(size)
+    n = (size - q0) // up
+    full = np.fft.ifft(part * rep, axis=-1)[:, q0:q0 + up * n:up]
+    got = _decimated(_product_folded(part, rep, up), q0 // up, n)
+    np.testing.assert_allclose(got, full, rtol=0, atol=1e-14)
+
+
 def test_delta_trains_padded_to_the_fft_length_are_the_same_trains():
     scene = load("default.yaml")
     setup = make_setup(scene)

@@ -23,6 +23,8 @@ accumulated in the same order whatever the number of threads (bit-identical resu
 """
 from __future__ import annotations
 
+import math
+import threading
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -31,7 +33,7 @@ import numpy as np
 
 from acoustics.sonar.arrays import ElementArray
 from acoustics.sonar.directivity import array_response, element_directivity
-from acoustics.synthesis.kernels import EXP_SMALL_LIMIT, cis_cycles, exp_small, sincos
+from acoustics.synthesis.kernels import EXP_SMALL_LIMIT, cis_cycles, exp_small, sine
 from acoustics.synthesis.simd import WIDTH, spread8
 from acoustics.medium import Medium
 from acoustics.sonar import preset
@@ -42,26 +44,21 @@ _LN10_OVER_20 = np.log(10.0) / 20.0
 
 
 @nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
-def _piston(dx, dy, dz, inv_r, ex0, ex1, ey0, ey1, hkw, hkh, baffle):
+def _piston(dx, dy, dz, inv_r, kx0, kx1, ky0, ky1, baffle):
     """Far-field rectangular piston directivity towards (dx, dy, dz) at distance 1/inv_r:
-    sinc(hkw u_x) sinc(hkh u_y), with one division for both factors."""
+    sinc(a) sinc(b), a = (k w / 2) u·x̂, b = (k h / 2) u·ŷ, with (kx0, kx1) = (k w / 2) x̂ and
+    (ky0, ky1) = (k h / 2) ŷ (x–y components of the element's local axes, scaled), and one
+    division for both factors. Only an argument of exactly 0 takes the limit 1: :func:`sine`
+    is exact to the last bit for tiny arguments (sin a = a there), so sine(a)/a needs no
+    series."""
     if baffle and dz < 0.0:
         return 0.0
-    a = hkw * (dx * ex0 + dy * ex1) * inv_r
-    b = hkh * (dx * ey0 + dy * ey1) * inv_r
-    num = 1.0
-    den = 1.0
-    if abs(a) < 1e-5:
-        num = 1.0 - a * a * (1.0 / 6.0)
-    else:
-        num, _ = sincos(a)
-        den = a
-    if abs(b) < 1e-5:
-        num *= 1.0 - b * b * (1.0 / 6.0)
-    else:
-        sb, _ = sincos(b)
-        num *= sb
-        den *= b
+    a = (dx * kx0 + dy * kx1) * inv_r
+    b = (dx * ky0 + dy * ky1) * inv_r
+    za = a == 0.0
+    zb = b == 0.0
+    num = (1.0 if za else sine(a)) * (1.0 if zb else sine(b))
+    den = (1.0 if za else a) * (1.0 if zb else b)
     return num / den
 
 
@@ -81,7 +78,7 @@ def _tx_block(qx, qy, qz, rref, cx, cy, cz, ex0, ex1, ey0, ey1, hkw, hkh, w, inv
         dz = qz[i] - cz
         r = max(np.sqrt(dx * dx + dy * dy + dz * dz), 1e-9)
         inv_r = 1.0 / r
-        d = _piston(dx, dy, dz, inv_r, ex0, ex1, ey0, ey1, hkw, hkh, baffle)
+        d = _piston(dx, dy, dz, inv_r, hkw * ex0, hkw * ex1, hkh * ey0, hkh * ey1, baffle)
         # R_e − R_T by direct subtraction: at sonar ranges that costs ~1e-14 m, i.e. 1e-11 rad
         sn, cs = cis_cycles(-(r - rref[i]) * inv_lam)
         amp = w * d * rref[i] * inv_r
@@ -90,15 +87,14 @@ def _tx_block(qx, qy, qz, rref, cx, cy, cz, ex0, ex1, ey0, ey1, hkw, hkh, w, inv
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
-def _tx_far_field(px, py, pz, c, ex, ey, hkw, hkh, w, ref, inv_lam, baffle):
-    """E_t(P) for every scatterer, Σ_e w_e D_e e^{−jk(R_e − R_T)} (R_T/R_e) / Σ w_e, and R_T."""
+def _tx_far_field(px, py, pz, c, ex, ey, hkw, hkh, w, ref, inv_lam, baffle, out, r_out):
+    """E_t(P) for every scatterer, Σ_e w_e D_e e^{−jk(R_e − R_T)} (R_T/R_e) / Σ w_e, into ``out``,
+    and R_T into ``r_out``."""
     n_s = px.shape[0]
     n_e = c.shape[0]
     wsum = 0.0
     for e in range(n_e):
         wsum += w[e]
-    out = np.empty(n_s, np.complex128)
-    r_out = np.empty(n_s)
     n_blocks = (n_s + _BLOCK - 1) // _BLOCK
     for b in nb.prange(n_blocks):
         s0 = b * _BLOCK
@@ -141,7 +137,7 @@ def _pair(x, y, z, fre, fim, r1, cx, cy, cz, ex0, ex1, ey0, ey1, hkw, hkh, dre, 
         are = dre * g
         aim = dim * g
     else:
-        are = _piston(dx, dy, dz, inv_r, ex0, ex1, ey0, ey1, hkw, hkh, baffle) * g
+        are = _piston(dx, dy, dz, inv_r, hkw * ex0, hkw * ex1, hkh * ey0, hkh * ey1, baffle) * g
         aim = 0.0
     # (fre + j fim)(are + j aim)(cs + j sn)
     pr = fre * are - fim * aim
@@ -156,6 +152,7 @@ def _pair_block(qx, qy, qz, qre, qim, q1, cx, cy, cz, ex0, ex1, ey0, ey1, hkw, h
 
     Writes Re A to ``buf[:n]``, Im A to ``buf[B:B + n]`` and τ to ``buf[2B:2B + n]``."""
     n = qx.shape[0]
+    kx0, kx1, ky0, ky1 = hkw * ex0, hkw * ex1, hkh * ey0, hkh * ey1
     for i in range(n):
         dx = qx[i] - cx
         dy = qy[i] - cy
@@ -168,13 +165,57 @@ def _pair_block(qx, qy, qz, qre, qim, q1, cx, cy, cz, ex0, ex1, ey0, ey1, hkw, h
             g *= exp_small(-alpha * (r2 - q1[i]))
         else:
             g *= np.exp(-alpha * (r2 - q1[i]))
-        g *= _piston(dx, dy, dz, inv_r, ex0, ex1, ey0, ey1, hkw, hkh, baffle)
+        g *= _piston(dx, dy, dz, inv_r, kx0, kx1, ky0, ky1, baffle)
         sn, cs = cis_cycles(-path * inv_lam)
         are = g * qre[i]
         aim = g * qim[i]
         buf[i] = are * cs - aim * sn
         buf[_BLOCK + i] = are * sn + aim * cs
         buf[2 * _BLOCK + i] = path * inv_c
+
+
+@nb.njit(cache=True, fastmath=True, error_model="numpy")
+def _locate_block(buf, n, t0, fs, q0, n_phase, taps, stride, lo, hi, offset, at):
+    """Where each of a block's arrivals lands on the grid, for :func:`spread8` (vectorised).
+
+    Reads τ from ``buf[2B:2B + n]`` (as :func:`_pair_block` leaves it) and overwrites it with
+    the weight w of the kernel table's forward difference; writes to ``at[:n]`` the sample of
+    the first tap plus ``offset`` (−1: outside [lo, hi), dropped) and to ``at[B:B + n]`` the
+    flat index of the table row (rows ``stride`` apart). The same operations as
+    :func:`_tap_kernel`, eight arrivals a vector step instead of one at a time in the spreading
+    loop."""
+    first = offset - taps // 2 + 1
+    last_row = float(n_phase - 1)
+    for i in range(n):
+        # branch-free (selects, bitwise and of the bounds), so that the loop vectorises
+        mu = (buf[2 * _BLOCK + i] - t0) * fs + q0
+        inside = (mu >= lo) & (mu < hi)
+        mu = mu if inside else lo  # an integer conversion of any float is then defined
+        m0 = np.floor(mu)  # mu >= lo > 0: the integer part
+        x = (mu - m0) * n_phase
+        r = min(np.floor(x), last_row)
+        buf[2 * _BLOCK + i] = x - r
+        at[i] = first + int(m0) if inside else -1
+        at[_BLOCK + i] = int(r) * stride
+
+
+@nb.njit(cache=True, fastmath=True, error_model="numpy", boundscheck=False)
+def _spread_block8(at, buf, n, nk, tflat, dflat, rre, rim):
+    """Spread a block's located arrivals of ``nk`` channels, taken in turns, one 8-tap vector
+    step each (``at`` and ``buf`` as :func:`_locate_block` leaves them, channel j's at offsets
+    2jB and 3jB). A function of its own with unsigned offsets: no negative-index wrap-around,
+    few live values, so the loop keeps its pointers in registers (13 instructions an
+    arrival)."""
+    block = np.uint64(_BLOCK)
+    for i in range(n):
+        ui = np.uint64(i)
+        for j in range(nk):
+            uj = np.uint64(j)
+            base = at[np.uint64(2) * uj * block + ui]
+            if base >= 0:
+                o = np.uint64(3) * uj * block + ui
+                spread8(tflat, dflat, at[(np.uint64(2) * uj + np.uint64(1)) * block + ui],
+                        buf[o + np.uint64(2) * block], rre, rim, base, buf[o], buf[o + block])
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
@@ -254,13 +295,15 @@ def _add_split(rre, rim, base, ar, ai, k):
 
 @nb.njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
 def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, inv_lam, alpha,
-            small_abs, spreading, baffle, table, dtable, t0, fs, q0, n_out, n_alloc):
+            small_abs, spreading, baffle, table, dtable, tflat, dflat, t0, fs, q0, n_out,
+            n_alloc, out):
     """Accumulate every arrival onto its channel's delta train through the kernel table.
 
     ``table[i, j]`` is the kernel at tap j for fractional offset i / (rows − 1) and ``dtable``
     its forward difference along i; taps land on samples floor(μ) − L/2 + 1 + j with
     μ = (τ − t0) fs + q0, those of arrivals outside [0, n_out) dropped; the trains are
-    ``n_alloc`` ≥ n_out long, zero beyond n_out (an FFT length: no padded copy). One thread per
+    ``n_alloc`` ≥ n_out long, zero beyond n_out (an FFT length: no padded copy), written to
+    ``out`` (n_r, n_alloc), complex, every sample overwritten. One thread per
     channel, scatterers in the given order: the sums do not depend on the number of threads.
     """
     n_s, n_r = px.shape[0], c.shape[0]
@@ -268,9 +311,9 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
     lo = float(half)
     hi = float(n_out - half)
     if use_d:  # huygens: directivities given, scalar path
-        out = np.zeros((n_r, n_alloc), np.complex128)
         for n in nb.prange(n_r):
             row = out[n]
+            row[:] = 0.0
             for s in range(n_s):
                 d = d_in[s, n]
                 tau, ar, ai = _pair(px[s], py[s], pz[s], fre[s], fim[s], r1[s], c[n, 0], c[n, 1],
@@ -284,11 +327,6 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
     # imaginary parts in two real trains (contiguous multiply-adds), joined at the end
     taps = table.shape[1]
     n_phase = dtable.shape[0]
-    tflat = table.ravel()
-    dflat = dtable.ravel()
-    # every sample is written by the join at the end of a channel: no zeroing (4.9 MB at
-    # 10⁵ x 32, in the serial part)
-    out = np.empty((n_r, n_alloc), np.complex128)
     if taps % WIDTH == 0:
         # _GROUP channels a thread, their arrivals taken in turns: an arrival's taps are not
         # loaded straight after the previous arrival of the same channel stored them over the
@@ -298,9 +336,9 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
             n0 = g * _GROUP
             nk = min(_GROUP, n_r - n0)
             buf = np.empty(_GROUP * 3 * _BLOCK)
+            at = np.empty(_GROUP * 2 * _BLOCK, np.int64)
             rre = np.zeros(_GROUP * n_alloc)
             rim = np.zeros(_GROUP * n_alloc)
-            half = taps // 2
             for s0 in range(0, n_s, _BLOCK):
                 s1 = min(s0 + _BLOCK, n_s)
                 for j in range(nk):
@@ -310,19 +348,22 @@ def _spread(px, py, pz, fre, fim, r1, c, ex, ey, hkw, hkh, d_in, use_d, inv_c, i
                                 ey[n, 0], ey[n, 1], hkw[n], hkh[n], inv_c, inv_lam, alpha,
                                 small_abs, spreading, baffle,
                                 buf[j * 3 * _BLOCK:(j + 1) * 3 * _BLOCK])
+                    _locate_block(buf[j * 3 * _BLOCK:(j + 1) * 3 * _BLOCK], s1 - s0, t0, fs, q0,
+                                  n_phase, taps, 2 * taps, lo, hi, j * n_alloc,
+                                  at[j * 2 * _BLOCK:(j + 1) * 2 * _BLOCK])
+                if taps == WIDTH:  # the default kernel: one vector step, no loop over taps
+                    _spread_block8(at, buf, s1 - s0, nk, tflat, dflat, rre, rim)
+                    continue
                 for i in range(s1 - s0):
                     for j in range(nk):
-                        o = j * 3 * _BLOCK + i
-                        mu = (buf[o + 2 * _BLOCK] - t0) * fs + q0
-                        if mu < lo or mu >= hi:
+                        base = at[j * 2 * _BLOCK + i]
+                        if base < 0:
                             continue
-                        m0 = int(mu)
-                        x = (mu - m0) * n_phase
-                        r = min(int(x), n_phase - 1)
-                        w = x - r
-                        base = j * n_alloc + m0 - half + 1
+                        o = j * 3 * _BLOCK + i
+                        row = at[(j * 2 + 1) * _BLOCK + i]
+                        w = buf[o + 2 * _BLOCK]
                         for t in range(0, taps, WIDTH):
-                            spread8(tflat, dflat, r * taps + t, w, rre, rim, base + t, buf[o],
+                            spread8(tflat, dflat, row + t, w, rre, rim, base + t, buf[o],
                                     buf[o + _BLOCK])
             for j in range(nk):
                 row = out[n0 + j]
@@ -453,6 +494,30 @@ class EchoModel:
             baffle=self.baffle)
 
 
+_WORK = threading.local()
+#: the largest work buffer kept between calls (bytes); a larger one is allocated afresh each time,
+#: so that what a thread keeps stays below 6 x this (the synthesis' six buffers) whatever the
+#: scene: 10⁵ scatterers x 32 channels need 4.9 MB at most
+_SCRATCH_MAX_BYTES = 8_000_000
+
+
+def _scratch(name: str, shape, dtype) -> np.ndarray:
+    """This thread's work buffer ``name`` as an uninitialised array of ``shape``, reused from
+    call to call (kept at the largest size asked for, up to ``_SCRATCH_MAX_BYTES``). A fresh
+    multi-megabyte array is mapped anew by the allocator and pays a page fault per 4 KiB on its
+    first touch — about 0.2 ms per MB on the machine of docs/performance.md, 2.5 ms of a
+    10⁵ x 32 synthesis. The caller must be done with the previous contents: only the
+    synthesis' internal inputs and trains use it."""
+    size = math.prod(shape) if isinstance(shape, tuple) else int(shape)
+    if size * np.dtype(dtype).itemsize > _SCRATCH_MAX_BYTES:
+        return np.empty(shape, dtype)
+    buf = getattr(_WORK, name, None)
+    if buf is None or buf.dtype != dtype or buf.size < size:
+        buf = np.empty(size, dtype)
+        setattr(_WORK, name, buf)
+    return buf[:size].reshape(shape)
+
+
 def _positions(positions) -> np.ndarray:
     p = np.ascontiguousarray(np.asarray(positions, float).reshape(-1, 3))
     if not np.all(np.isfinite(p)):
@@ -460,8 +525,10 @@ def _positions(positions) -> np.ndarray:
     return p
 
 
-def _transmit(model: EchoModel, p: np.ndarray):
-    """E_t(P) (complex, shape (S,)) and r1 = |P − T| (m, shape (S,))."""
+def _transmit(model: EchoModel, p: np.ndarray, scratch: bool = False):
+    """E_t(P) (complex, shape (S,)) and r1 = |P − T| (m, shape (S,)); ``scratch``: far-field
+    results in this thread's work buffers (see :func:`_scratch`), for a caller that drops them
+    before the next call."""
     tx = model.transmitter
     ref = tx.phase_center_m
     k = model.wavenumber_rad_m
@@ -470,11 +537,16 @@ def _transmit(model: EchoModel, p: np.ndarray):
                              subdivisions=model.subdivisions, baffle=model.baffle, reference_m=ref)
         return e_t, np.linalg.norm(p - ref, axis=1)
     ex, ey = tx.local_axes
-    return _tx_far_field(np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
-                         np.ascontiguousarray(p[:, 2]), np.ascontiguousarray(tx.center_m),
-                         np.ascontiguousarray(ex[:, :2]), np.ascontiguousarray(ey[:, :2]),
-                         0.5 * k * tx.width_m, 0.5 * k * tx.height_m, tx.weight, ref,
-                         model.center_frequency_hz / model.medium.sound_speed_m_s, model.baffle)
+    if scratch:
+        e_t, r1 = _scratch("e_t", p.shape[0], np.complex128), _scratch("r1", p.shape[0], np.float64)
+    else:
+        e_t, r1 = np.empty(p.shape[0], np.complex128), np.empty(p.shape[0])
+    _tx_far_field(np.ascontiguousarray(p[:, 0]), np.ascontiguousarray(p[:, 1]),
+                  np.ascontiguousarray(p[:, 2]), np.ascontiguousarray(tx.center_m),
+                  np.ascontiguousarray(ex[:, :2]), np.ascontiguousarray(ey[:, :2]),
+                  0.5 * k * tx.width_m, 0.5 * k * tx.height_m, tx.weight, ref,
+                  model.center_frequency_hz / model.medium.sound_speed_m_s, model.baffle, e_t, r1)
+    return e_t, r1
 
 
 def _alpha_np_per_m(model: EchoModel) -> float:
@@ -514,13 +586,10 @@ def _kernel_inputs(model, positions_m, strength, *, by_range=False, receive_posi
     a path that bounces on its way back (multipath); the transmit leg uses ``positions_m``."""
     p = _positions(positions_m)
     q = np.asarray(strength, complex).reshape(-1)
-    e_t, r1 = _transmit(model, p)
+    if q.shape[0] != p.shape[0]:
+        raise ValueError("positions_m and strength must describe the same scatterers")
+    e_t, r1 = _transmit(model, p, scratch=True)
     alpha = _alpha_np_per_m(model)
-    # k S q E_t g(r1) and, folded in here, the receive leg's absorption up to e^{−α(r2 − r1)}
-    w = np.exp(-2.0 * alpha * r1) if alpha else np.ones_like(r1)
-    if model.spreading:
-        w = w / np.maximum(r1, 1e-3)
-    f_s = model.scale_counts * model.source_level * q * e_t * w
     prx = p if receive_positions_m is None else _positions(receive_positions_m)
     if prx.shape != p.shape:
         raise ValueError("receive_positions_m must have the shape of positions_m")
@@ -539,16 +608,38 @@ def _kernel_inputs(model, positions_m, strength, *, by_range=False, receive_posi
             rx = rx._replace(directivity=rx.directivity[order])
     else:
         order = np.arange(r1.size)
-    return tuple(_columns(order, prx, f_s, r1)) + tuple(rx)
+    # e^{−2α r1} by numpy's vectorised exp (numba's calls libm once per scatterer)
+    decay = _scratch("decay", r1.size, np.float64)
+    if alpha:
+        np.exp(np.multiply(r1, -2.0 * alpha, out=decay), out=decay)
+    else:
+        decay.fill(1.0)
+    f_s = _scratch("factor", r1.size, np.complex128)
+    _factor(model.scale_counts * model.source_level, q, e_t, decay, r1, model.spreading, f_s)
+    cols = _scratch("columns", (6, r1.size), np.float64)
+    _columns(order, prx, f_s, r1, cols)
+    return tuple(cols) + tuple(rx)
 
 
 @nb.njit(cache=True, parallel=True, error_model="numpy")
-def _columns(order, prx, f_s, r1):
+def _factor(scale, q, e_t, decay, r1, spreading, out):
+    """The scatterer factor k S q E_t g(r1) with, folded in here, the receive leg's absorption
+    up to e^{−α(r2 − r1)}: ``scale`` q E_t e^{−2α r1} / r1 (``decay`` = e^{−2α r1}; 1/r1 only
+    with ``spreading``), multiplied in that order, into ``out`` (S,), in input order (one
+    sequential pass: the gather that reorders it then reads one array, not four)."""
+    for s in nb.prange(q.shape[0]):
+        w = decay[s]
+        if spreading:
+            w = w / max(r1[s], 1e-3)
+        out[s] = scale * q[s] * e_t[s] * w
+
+
+@nb.njit(cache=True, parallel=True, error_model="numpy")
+def _columns(order, prx, f_s, r1, out):
     """The kernels' six input columns (x, y, z of the receive leg's start, Re and Im of the
-    scatterer factor, r1), contiguous, scatterer ``order[i]`` in row i: one parallel pass
-    instead of six strided takes (copies: the values are unchanged)."""
+    scatterer factor, r1), contiguous, scatterer ``order[i]`` in row i, into ``out`` (6, S):
+    one parallel pass instead of six strided takes (copies: the values are unchanged)."""
     n = order.shape[0]
-    out = np.empty((6, n))
     for i in nb.prange(n):
         s = order[i]
         out[0, i] = prx[s, 0]
@@ -557,7 +648,6 @@ def _columns(order, prx, f_s, r1):
         out[3, i] = f_s[s].real
         out[4, i] = f_s[s].imag
         out[5, i] = r1[s]
-    return out[0], out[1], out[2], out[3], out[4], out[5]
 
 
 def arrivals(model: EchoModel, positions_m, strength, *, receive_positions_m=None):
@@ -578,13 +668,15 @@ def arrivals(model: EchoModel, positions_m, strength, *, receive_positions_m=Non
 
 
 def spread_arrivals(model: EchoModel, positions_m, strength, *, table, t0_s, rate_hz, q0, n_out,
-                    receive_positions_m=None, length=None):
+                    receive_positions_m=None, length=None, scratch=False):
     """The channels' fractional-delay delta trains, shape (N_rx, length), complex128.
 
     Arrivals land on samples [0, n_out) (the rest are dropped); ``length`` (≥ n_out, default
     n_out) pads the trains with zeros, e.g. to the FFT length that convolves them. Scatterers are
     visited in order of range (a stable sort), so the delta trains are written nearly
-    sequentially; the order is fixed by the scene, never by the thread count.
+    sequentially; the order is fixed by the scene, never by the thread count. ``scratch``: the
+    trains in this thread's work buffer (see :func:`_scratch`), overwritten by the next call
+    that asks for it — for a caller that is done with them by then.
     """
     args = _kernel_inputs(model, positions_m, strength, by_range=True,
                           receive_positions_m=receive_positions_m)
@@ -592,9 +684,47 @@ def spread_arrivals(model: EchoModel, positions_m, strength, *, table, t0_s, rat
     length = int(n_out) if length is None else int(length)
     if length < n_out:
         raise ValueError(f"length {length} < n_out {n_out}")
-    out = _spread(*args, table, np.ascontiguousarray(np.diff(table, axis=0)), float(t0_s),
-                  float(rate_hz), float(q0), int(n_out), length)
+    dtable, tflat, dflat = _table_forms(table)
+    n_rx = model.receiver.n_elements
+    out = (_scratch("trains", (n_rx, length), np.complex128) if scratch
+           else np.empty((n_rx, length), np.complex128))
+    _spread(*args, table, dtable, tflat, dflat, float(t0_s), float(rate_hz), float(q0),
+            int(n_out), length, out)
     return out
+
+
+_TABLE_FORMS: dict = {}
+
+
+def _table_forms(table):
+    """(forward difference, interleaved views) of a kernel table, made once per table object
+    (:func:`~acoustics.synthesis.synthesize.fractional_delay_table` returns the same read-only
+    table for the same arguments): a few recent tables are kept, each with its forms."""
+    hit = _TABLE_FORMS.get(id(table))
+    if hit is not None and hit[0] is table:
+        return hit[1:]
+    dtable = np.ascontiguousarray(np.diff(table, axis=0))
+    forms = (dtable,) + _interleaved(table, dtable)
+    if not table.flags.writeable:  # a table that cannot change under its id
+        if len(_TABLE_FORMS) >= 8:
+            _TABLE_FORMS.pop(next(iter(_TABLE_FORMS)))
+        _TABLE_FORMS[id(table)] = (table,) + forms
+    return forms
+
+
+def _interleaved(table, dtable):
+    """Row i of the kernel table and of its forward difference side by side in one buffer
+    aligned to 64 bytes (the vector steps' table loads then touch two whole cache lines per
+    arrival instead of parts of four), as two flat views: ``tflat[i * 2L:]`` starts row i of
+    ``table``, ``dflat[i * 2L:]`` row i of ``dtable`` (the same numbers, copied)."""
+    rows, taps = dtable.shape
+    raw = np.empty(rows * 2 * taps + 8)
+    skip = (-raw.ctypes.data % 64) // 8
+    both = raw[skip:skip + rows * 2 * taps].reshape(rows, 2 * taps)
+    both[:, :taps] = table[:rows]
+    both[:, taps:] = dtable
+    flat = both.ravel()
+    return flat, flat[taps:]
 
 
 # The compiled steps, for the other synthesis kernels (acoustics/synthesis/doppler_bank.py):

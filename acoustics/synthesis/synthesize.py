@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 
+import numba as nb
 import numpy as np
 import scipy.fft as sfft
 from scipy.special import i0
@@ -250,7 +251,7 @@ def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
     the replica shifted by shift_hz; None: one group, unshifted. A Doppler group whose echoes
     span a short stretch of the record is convolved over that stretch alone (overlap-add)."""
     fine = fs * up
-    replica = pulse.replica(fine)
+    replica = _replica(pulse, fine)
     m = replica.size
     # room for an echo that starts up to a pulse length plus half a kernel before sample 0; a
     # whole number of output samples, so the output keeps every up-th fine sample from q0
@@ -293,12 +294,19 @@ def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
                     acc = np.zeros((delta.shape[0], nfft), complex)
                 acc[:, g_lo:g_lo + span + m - 1] += y
                 continue
-        # the trains come at the FFT's length (no padded copy), transformed in place
+        # the trains come at the FFT's length (no padded copy), transformed in place; one
+        # group is done with them before this thread's next synthesis: its work buffer
         delta = spread_arrivals(model, pk, qk, table=table, t0_s=t0, rate_hz=fine, q0=q0,
-                                n_out=n_out, receive_positions_m=rk, length=nfft)
+                                n_out=n_out, receive_positions_m=rk, length=nfft,
+                                scratch=not doppler)
         part = sfft.fft(delta, axis=1, workers=-1, overwrite_x=True)
         if shift_hz not in rep_spec:
-            rep_spec[shift_hz] = sfft.fft(rep, nfft)
+            rep_spec[shift_hz] = (_replica_spectrum(pulse, fine, nfft) if not shift_hz
+                                  else sfft.fft(rep, nfft))
+        if not doppler:
+            # one group: the product with the pulse and the fold of the decimation in one
+            # parallel pass (the same operations as _every_up_th's)
+            return _decimated(_product_folded(part, rep_spec[shift_hz], up), q0 // up, n)
         part *= rep_spec[shift_hz]
         if spec is None:
             spec = part
@@ -313,12 +321,51 @@ def _fast(model, p, q, pulse, fs, n, t0, taps, up, prx=None, groups=None):
     return out
 
 
+@lru_cache(maxsize=8)
+def _replica(pulse: Pulse, rate_hz: float):
+    """The pulse's replica at ``rate_hz``: the same every ping of a run (read-only)."""
+    rep = pulse.replica(rate_hz)
+    rep.flags.writeable = False
+    return rep
+
+
+@lru_cache(maxsize=8)
+def _replica_spectrum(pulse: Pulse, rate_hz: float, nfft: int):
+    """The FFT (length ``nfft``) of the pulse's replica at ``rate_hz``: the same every ping of a
+    run (read-only)."""
+    spec = sfft.fft(_replica(pulse, rate_hz), nfft)
+    spec.flags.writeable = False
+    return spec
+
+
 def _even_fast_len(n: int, up: int) -> int:
     """The smallest FFT-friendly length ≥ n that ``up`` divides."""
     size = sfft.next_fast_len(n)
     while size % up:
         size = sfft.next_fast_len(size + 1)
     return size
+
+
+@nb.njit(cache=True, parallel=True, error_model="numpy")
+def _product_folded(part, rep, up):
+    """(part x rep) folded for :func:`_every_up_th`: Σ_r part[:, f + r M] rep[f + r M] / up with
+    M = N / up, shape (channels, M); sums in the order of numpy's reduction, division of the
+    real and imaginary parts (numba's complex / real would be a complex division)."""
+    n_c, size = part.shape[0], part.shape[1] // up
+    out = np.empty((n_c, size), np.complex128)
+    for c in nb.prange(n_c):
+        for f in range(size):
+            acc = part[c, f] * rep[f]
+            for r in range(1, up):
+                acc += part[c, f + r * size] * rep[f + r * size]
+            out[c, f] = complex(acc.real / up, acc.imag / up)
+    return out
+
+
+def _decimated(folded, start: int, n: int):
+    """Samples start, ..., start + n − 1 of the inverse FFT of ``folded`` (channels, M)."""
+    y = sfft.ifft(folded, axis=-1, workers=-1, overwrite_x=True)
+    return y[..., start:start + n]
 
 
 def _every_up_th(spec, up: int, q0: int, n: int):
