@@ -6,7 +6,10 @@ instead of dying half-way with an allocation error. The terms, in bytes:
 
 ``samples``       pings x channels x samples x 8 (complex64, held once for the dataset);
 ``synthesis``     per ping: the fine grid (``effects.oversampling``) of every channel, its FFT
-                  and the convolution: 4 x channels x U (samples + pulse) x 16;
+                  and the convolution: 4 x channels x U (samples + pulse) x 16 (the work
+                  buffers the synthesis keeps from ping to ping, acoustics/synthesis/arrivals.py
+                  ``_scratch``, are part of this and the next term, which the estimate holds for
+                  the whole run);
 ``scatterers``    per ping: targets (a population by density: its Poisson mean + 6 σ), boundary
                   facets (reverberation rays) and mesh-target facets, ≈ 200 bytes each, and with
                   Huygens directivity one complex number per scatterer and element;
