@@ -72,6 +72,18 @@ def test_cis_cycles_for_two_way_paths_of_70_m():
     assert np.abs(out[:, 1] - np.cos(2 * np.pi * frac)).max() < 2e-15
 
 
+def test_cis_cycles_for_any_float_including_beyond_2_to_the_50():
+    """From |c| = 2^50 on, 4c is an integer and floor(4c + 1/2) rounds an odd one up (the tie
+    goes to even): the reduction must still leave |f| <= 1/2, so e^{j2πc} stays exact for every
+    float64 c (its fraction, taken exactly by np.round, is a multiple of 1/4 up there)."""
+    c = np.concatenate([(2.0 ** k + np.array([0.25, 0.5, 0.75, 1.0, 1.25])) * s
+                        for k in (49, 50, 51, 52, 60) for s in (1.0, -1.0)])
+    out = _eval(c, 1)
+    frac = c - np.round(c)  # exact in float64
+    assert np.abs(out[:, 0] - np.sin(2 * np.pi * frac)).max() < 2e-15
+    assert np.abs(out[:, 1] - np.cos(2 * np.pi * frac)).max() < 2e-15
+
+
 def test_sin_over_including_zero():
     a = np.concatenate([np.random.default_rng(2).uniform(-60, 60, 100_000), [0.0, 1e-12, -1e-6, 1e-5]])
     out = _eval(a, 2)[:, 0]

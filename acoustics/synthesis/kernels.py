@@ -40,6 +40,7 @@ _T7, _T8 = -7.643970296798572e-13, 2.7314447669863995e-15
 _INV_PI = 1 / np.pi
 _PI_LO = 1.2246467991473532e-16  # π − float64(π)
 _PIO2 = np.pi / 2
+_TWO_52 = 2.0 ** 52
 _TWO_OVER_PI = 2 / np.pi
 _TWO_PI = 2 * np.pi
 #: exp_small is exact to double precision for |x| below this
@@ -80,6 +81,9 @@ def cis_cycles(cycles):
     is rounded (:func:`sincos`'s kernels and quadrant selects, without its reduction)."""
     c4 = 4.0 * cycles
     q = np.floor(c4 + 0.5)
+    # from 2^52 on c4 is an integer, and c4 + 1/2 a tie that rounds an odd c4 up: |c4 − q| = 1,
+    # outside the polynomials' range (2.5e-10 off at c = 2^50 + 1/4); q = c4 there (a select)
+    q = c4 if abs(c4) >= _TWO_52 else q
     r = (c4 - q) * _PIO2
     z = r * r
     s = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
