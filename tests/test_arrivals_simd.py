@@ -151,3 +151,18 @@ def test_a_changed_kernel_table_is_never_served_from_the_cache():
     rw *= 2.0
     np.testing.assert_allclose(spread_arrivals(model, p, q, table=rw, **kw), 2.0 * a, rtol=1e-12,
                                atol=1e-12 * np.abs(a).max())
+
+
+def test_a_read_only_view_of_a_changing_table_is_never_served_from_the_cache():
+    """Read-only is not unchanging: a read-only view of a writeable array changes with it, so
+    the cached forms may only be those of a table that owns its (read-only) memory."""
+    model = _model(5)
+    p, q = _scatterers(200, seed=4)
+    kw = dict(t0_s=0.0, rate_hz=90910.0, q0=40, n_out=5000)
+    base = fractional_delay_table(8, 0.4).copy()
+    view = base[:]
+    view.flags.writeable = False
+    a = spread_arrivals(model, p, q, table=view, **kw)
+    base *= 2.0
+    np.testing.assert_allclose(spread_arrivals(model, p, q, table=view, **kw), 2.0 * a, rtol=1e-12,
+                               atol=1e-12 * np.abs(a).max())

@@ -700,12 +700,15 @@ def _table_forms(table):
     """(forward difference, interleaved views) of a kernel table, made once per table object
     (:func:`~acoustics.synthesis.synthesize.fractional_delay_table` returns the same read-only
     table for the same arguments): a few recent tables are kept, each with its forms."""
+    # only a read-only table that owns its memory cannot change under its id (a read-only view
+    # of a writeable array changes with it)
+    fixed = not table.flags.writeable and table.flags.owndata
     hit = _TABLE_FORMS.get(id(table))
-    if hit is not None and hit[0] is table:
+    if fixed and hit is not None and hit[0] is table:
         return hit[1:]
     dtable = np.ascontiguousarray(np.diff(table, axis=0))
     forms = (dtable,) + _interleaved(table, dtable)
-    if not table.flags.writeable:  # a table that cannot change under its id
+    if fixed:
         if len(_TABLE_FORMS) >= 8:
             _TABLE_FORMS.pop(next(iter(_TABLE_FORMS)))
         _TABLE_FORMS[id(table)] = (table,) + forms
