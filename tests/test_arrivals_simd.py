@@ -166,3 +166,39 @@ def test_a_read_only_view_of_a_changing_table_is_never_served_from_the_cache():
     base *= 2.0
     np.testing.assert_allclose(spread_arrivals(model, p, q, table=view, **kw), 2.0 * a, rtol=1e-12,
                                atol=1e-12 * np.abs(a).max())
+
+
+def test_the_table_cache_survives_threads_that_evict_at_once():
+    """Two Python threads may synthesise at once: the cache's eviction (more tables than it
+    keeps) must not raise in one thread because another evicted or added meanwhile."""
+    import sys
+    import threading
+    from acoustics.synthesis import arrivals as A
+    tables = []
+    for i in range(16):
+        t = np.random.default_rng(i).standard_normal((5, 8))
+        t.flags.writeable = False
+        tables.append(t)
+    errors = []
+
+    def work(k):
+        try:
+            for j in range(3000):
+                A._table_forms(tables[(j * 7 + k) % 16])
+        except Exception as e:  # any exception is the failure
+            errors.append(repr(e))
+
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)  # switch threads often: the race shows within a few hundred calls
+    try:
+        for _ in range(6):  # a round shows the race three times in four: six nearly always
+            threads = [threading.Thread(target=work, args=(k,)) for k in range(8)]
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join()
+            if errors:
+                break
+    finally:
+        sys.setswitchinterval(interval)
+    assert errors == []

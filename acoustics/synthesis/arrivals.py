@@ -694,6 +694,7 @@ def spread_arrivals(model: EchoModel, positions_m, strength, *, table, t0_s, rat
 
 
 _TABLE_FORMS: dict = {}
+_TABLE_FORMS_LOCK = threading.Lock()
 
 
 def _table_forms(table):
@@ -709,9 +710,12 @@ def _table_forms(table):
     dtable = np.ascontiguousarray(np.diff(table, axis=0))
     forms = (dtable,) + _interleaved(table, dtable)
     if fixed:
-        if len(_TABLE_FORMS) >= 8:
-            _TABLE_FORMS.pop(next(iter(_TABLE_FORMS)))
-        _TABLE_FORMS[id(table)] = (table,) + forms
+        # threads synthesising at once: one evicting while another evicts or adds would raise
+        # (KeyError, or "dictionary changed size during iteration"); lookups need no lock
+        with _TABLE_FORMS_LOCK:
+            if len(_TABLE_FORMS) >= 8:
+                _TABLE_FORMS.pop(next(iter(_TABLE_FORMS)))
+            _TABLE_FORMS[id(table)] = (table,) + forms
     return forms
 
 
