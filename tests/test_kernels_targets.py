@@ -84,6 +84,20 @@ def test_cis_cycles_for_any_float_including_beyond_2_to_the_50():
     assert np.abs(out[:, 1] - np.cos(2 * np.pi * frac)).max() < 2e-15
 
 
+@pytest.mark.parametrize("tiny", [1e-170, 1e-310, 1e-318, 2e-322])
+def test_piston_sinc_product_for_tiny_and_subnormal_arguments(tiny):
+    """sinc(a) sinc(b) is 1 − a²/6 ≈ 1 in float64 for |a| ≲ 1e-8, whatever else: one division
+    of the two sines' product by a b must not lose a subnormal a's digits (a b underflows, or
+    keeps a few bits) — the pattern towards a direction a hair off an element's axis."""
+    from acoustics.synthesis.arrivals import _piston
+    r = np.hypot(20.0, 20.0)
+    b = 3.0 * 20.0 / r
+    side = _piston(tiny, 20.0, 20.0, 1.0 / r, 3.0, 0.0, 0.0, 3.0, False)  # a tiny, b = 2.12
+    both = _piston(tiny, tiny, 20.0, 1.0 / 20.0, 3.0, 0.0, 0.0, 3.0, False)  # a, b tiny
+    assert abs(side - np.sin(b) / b) <= 1e-15
+    assert both == 1.0
+
+
 def test_sin_over_including_zero():
     a = np.concatenate([np.random.default_rng(2).uniform(-60, 60, 100_000), [0.0, 1e-12, -1e-6, 1e-5]])
     out = _eval(a, 2)[:, 0]

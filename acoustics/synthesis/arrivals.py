@@ -48,15 +48,16 @@ def _piston(dx, dy, dz, inv_r, kx0, kx1, ky0, ky1, baffle):
     """Far-field rectangular piston directivity towards (dx, dy, dz) at distance 1/inv_r:
     sinc(a) sinc(b), a = (k w / 2) u·x̂, b = (k h / 2) u·ŷ, with (kx0, kx1) = (k w / 2) x̂ and
     (ky0, ky1) = (k h / 2) ŷ (x–y components of the element's local axes, scaled), and one
-    division for both factors. Only an argument of exactly 0 takes the limit 1: :func:`sine`
-    is exact to the last bit for tiny arguments (sin a = a there), so sine(a)/a needs no
-    series."""
+    division for both factors. :func:`sine` is exact to the last bit for tiny arguments
+    (sin a = a there), so sine(a)/a needs no series; but an argument below 1e-150 takes the
+    limit 1 (sinc a = 1 − a²/6 rounds to 1 from 1e-8 down): the product a b of one so small
+    would underflow (0/0) or keep a subnormal's few bits."""
     if baffle and dz < 0.0:
         return 0.0
     a = (dx * kx0 + dy * kx1) * inv_r
     b = (dx * ky0 + dy * ky1) * inv_r
-    za = a == 0.0
-    zb = b == 0.0
+    za = abs(a) < 1e-150
+    zb = abs(b) < 1e-150
     num = (1.0 if za else sine(a)) * (1.0 if zb else sine(b))
     den = (1.0 if za else a) * (1.0 if zb else b)
     return num / den
