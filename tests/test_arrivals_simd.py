@@ -202,3 +202,11 @@ def test_the_table_cache_survives_threads_that_evict_at_once():
     finally:
         sys.setswitchinterval(interval)
     assert errors == []
+
+
+def test_no_scatterers_spread_to_silent_trains():
+    """An empty scene (S = 0) gives zero trains of the asked length, as synthesize gives silence."""
+    model = _model(5)
+    kw = dict(table=fractional_delay_table(8, 0.4), t0_s=0.0, rate_hz=90910.0, q0=40, n_out=500)
+    out = spread_arrivals(model, np.zeros((0, 3)), np.zeros(0, complex), length=512, **kw)
+    assert out.shape == (5, 512) and not out.any()

@@ -603,7 +603,7 @@ def _kernel_inputs(model, positions_m, strength, *, by_range=False, receive_posi
             rx = rx._replace(cheap_exp=False)
     if by_range:
         # a 16-bit key gets numpy's linear-time radix sort; ties keep the input order
-        key = (r1 * (32767.0 / max(float(r1.max()), 1e-12))).astype(np.int16)
+        key = (r1 * (32767.0 / max(float(r1.max(initial=0.0)), 1e-12))).astype(np.int16)
         order = np.argsort(key, kind="stable")
         if rx.use_directivity:  # huygens directivities follow their scatterers
             rx = rx._replace(directivity=rx.directivity[order])
