@@ -584,7 +584,9 @@ def _kernel_inputs(model, positions_m, strength, *, by_range=False, receive_posi
     """Columns the compiled kernels take, optionally reordered by range (see spread_arrivals).
 
     ``receive_positions_m`` (S, 3), when given, is where the receive leg starts: the image point of
-    a path that bounces on its way back (multipath); the transmit leg uses ``positions_m``."""
+    a path that bounces on its way back (multipath); the transmit leg uses ``positions_m``.
+    The six columns are this thread's work buffers (:func:`_scratch`): the next call overwrites
+    them, so a caller uses them before it calls again (or copies them)."""
     p = _positions(positions_m)
     q = np.asarray(strength, complex).reshape(-1)
     if q.shape[0] != p.shape[0]:
