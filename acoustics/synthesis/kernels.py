@@ -48,18 +48,24 @@ EXP_SMALL_LIMIT = 0.05
 
 
 @nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
-def sincos(x):
-    """(sin x, cos x) for |x| up to ~1e3 rad; absolute error <= 2e-16 (4 + |x|)."""
-    q = np.floor(x * _TWO_OVER_PI + 0.5)
-    r = x - q * _PIO2
+def _quadrant(r, q):
+    """(sin, cos) of r + q π/2 for |r| <= π/4 and q an integer (as a float): the polynomials
+    of r and the quadrant q mod 4, by selects, not branches (the carrier's quadrant is random,
+    a branch mispredicts)."""
     z = r * r
     s = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
     c = 1.0 - 0.5 * z + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
-    # quadrant by selects, not branches: the carrier's quadrant is random, a branch mispredicts
     qi = int(q) & 3
     a = c if qi & 1 else s
     b = s if qi & 1 else c
     return (-a if qi & 2 else a), (-b if (qi + 1) & 2 else b)
+
+
+@nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
+def sincos(x):
+    """(sin x, cos x) for |x| up to ~1e3 rad; absolute error <= 2e-16 (4 + |x|)."""
+    q = np.floor(x * _TWO_OVER_PI + 0.5)
+    return _quadrant(x - q * _PIO2, q)
 
 
 @nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
@@ -84,14 +90,7 @@ def cis_cycles(cycles):
     # from 2^52 on c4 is an integer, and c4 + 1/2 a tie that rounds an odd c4 up: |c4 − q| = 1,
     # outside the polynomials' range (2.5e-10 off at c = 2^50 + 1/4); q = c4 there (a select)
     q = c4 if abs(c4) >= _TWO_52 else q
-    r = (c4 - q) * _PIO2
-    z = r * r
-    s = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
-    c = 1.0 - 0.5 * z + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
-    qi = int(q) & 3
-    a = c if qi & 1 else s
-    b = s if qi & 1 else c
-    return (-a if qi & 2 else a), (-b if (qi + 1) & 2 else b)
+    return _quadrant((c4 - q) * _PIO2, q)
 
 
 @nb.njit(cache=True, inline="always", fastmath=True, error_model="numpy")
