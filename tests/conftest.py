@@ -58,3 +58,17 @@ def write_scene(tmp_path):
         p.write_text(text)
         return p
     return _write
+
+
+def on_one_thread_and_all(fn):
+    """``(fn() on one numba thread, fn() on all of them)``: for the tests that a result does not
+    depend on the thread count (the default count is restored whatever ``fn`` does)."""
+    import numba
+    n = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = fn()
+        numba.set_num_threads(n)
+        return one, fn()
+    finally:
+        numba.set_num_threads(n)

@@ -17,6 +17,8 @@ from acoustics.synthesis.arrivals import EchoModel, arrivals, spread_arrivals
 from acoustics.synthesis.simd import spread8
 from acoustics.synthesis.synthesize import fractional_delay_table
 
+from .conftest import on_one_thread_and_all
+
 
 def _model(n_rx):
     son = preset_sonar()
@@ -76,14 +78,7 @@ def test_vector_spread_does_not_depend_on_thread_count():
     model = _model(13)
     p, q = _scatterers(3000, seed=9)
     kw = dict(table=fractional_delay_table(8, 0.4), t0_s=0.0, rate_hz=90910.0, q0=40, n_out=5000)
-    n0 = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        one = spread_arrivals(model, p, q, **kw)
-        numba.set_num_threads(n0)
-        many = spread_arrivals(model, p, q, **kw)
-    finally:
-        numba.set_num_threads(n0)
+    one, many = on_one_thread_and_all(lambda: spread_arrivals(model, p, q, **kw))
     assert one.tobytes() == many.tobytes()
 
 

@@ -5,7 +5,6 @@ The exact synthesis evaluates every shifted echo A u(s) e^{j2πf s} at every sam
 itself. The bound asserted is that target plus the fast synthesis' own floor against ``exact``
 (−62 dB at U = 2, L = 8 for the sqrt-Hann pulse: docs/accuracy.md), added as amplitudes.
 """
-import numba
 import numpy as np
 import pytest
 
@@ -16,6 +15,8 @@ from acoustics.sonar.pulse import Pulse
 from acoustics.synthesis.arrivals import EchoModel
 from acoustics.synthesis.doppler_bank import bank_error_db, bank_nodes, bank_weights
 from acoustics.synthesis.synthesize import synthesize
+
+from .conftest import on_one_thread_and_all
 
 FAST_FLOOR_DB = -62.0
 
@@ -95,14 +96,7 @@ def test_bank_is_bit_identical_for_any_thread_count(model):
     p, q, rng = _scatterers(700)
     fd = rng.uniform(-700.0, 0.0, p.shape[0])
     kw = dict(pulse=Pulse(), rate_hz=preset.SAMPLE_RATE_HZ, n_samples=2048, doppler_hz=fd)
-    n = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        one = synthesize(model, p, q, **kw)
-        numba.set_num_threads(n)
-        many = synthesize(model, p, q, **kw)
-    finally:
-        numba.set_num_threads(n)
+    one, many = on_one_thread_and_all(lambda: synthesize(model, p, q, **kw))
     assert np.array_equal(one, many)
 
 

@@ -17,7 +17,7 @@ from acoustics.synthesis.synthesize import synthesize
 from processing.base.dataset import (ELEMENT_GROUP, TRUTH_GROUP, beam_samples, open_tree, read_record, stage_seconds,
                                      write_tree)
 
-from .conftest import SCENES
+from .conftest import SCENES, on_one_thread_and_all
 
 
 def load(name):
@@ -203,16 +203,8 @@ targets:
 
 
 def test_result_does_not_depend_on_thread_count():
-    import numba
     scene = load("two_targets.yaml")
-    n0 = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
-        one = samples_of(simulate(scene))
-        numba.set_num_threads(n0)
-        many = samples_of(simulate(scene))
-    finally:
-        numba.set_num_threads(n0)
+    one, many = on_one_thread_and_all(lambda: samples_of(simulate(scene)))
     assert np.array_equal(one, many)
 
 
