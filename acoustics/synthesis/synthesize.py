@@ -375,5 +375,4 @@ def _every_up_th(spec, up: int, q0: int, n: int):
     size = spec.shape[-1] // up
     folded = spec.reshape(spec.shape[:-1] + (up, size)).sum(axis=-2)
     folded /= up
-    y = sfft.ifft(folded, axis=-1, workers=-1, overwrite_x=True)
-    return y[..., q0 // up:q0 // up + n]
+    return _decimated(folded, q0 // up, n)
